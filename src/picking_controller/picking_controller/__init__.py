@@ -1,0 +1,1 @@
+"""Joint trajectory controller: samples a JointTrajectory at the controller clock period."""

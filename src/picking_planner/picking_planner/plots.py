@@ -1,0 +1,97 @@
+"""Plots a person reads instead of tables: time profiles, 3D paths, error curves.
+
+matplotlib is imported lazily with the Agg backend, so the core never needs a
+display and importing this module is cheap.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=()):
+    """Position, velocity and acceleration over time, one line per joint (Figs. 5, 9-11, 14).
+
+    Parameters
+    ----------
+    path : str or Path
+        PNG file to write.
+    t : ndarray, shape (N,)
+        s.
+    q, qd, qdd : ndarray, shape (N, n)
+    unit : str
+        Position unit for the axis labels (``rad``, ``deg``, ``m``).
+    marks : sequence of float
+        Times to mark with vertical lines (segment ends, via points).
+    """
+    plt = _pyplot()
+    n = q.shape[1]
+    labels = labels or [f'joint {j + 1}' for j in range(n)]
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5))
+    for ax, data, name in zip(axes, (q, qd, qdd),
+                              (f'position [{unit}]', f'velocity [{unit}/s]', f'acceleration [{unit}/s²]')):
+        for j in range(n):
+            ax.plot(t, data[:, j], label=labels[j])
+        for m in marks:
+            ax.axvline(m, color='0.8', lw=0.8, zorder=0)
+        ax.set_ylabel(name)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title(title)
+    axes[0].legend(loc='best', fontsize='small', ncol=min(n, 6))
+    axes[-1].set_xlabel('time [s]')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_path_3d(path, curves, points=None, title='', point_labels=None):
+    """A 3D tool path (Fig. 13): ``curves`` maps a label to an (N, 3) polyline."""
+    plt = _pyplot()
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection='3d')
+    for label, xyz in curves.items():
+        ax.plot(xyz[:, 0], xyz[:, 1], xyz[:, 2], label=label)
+    if points is not None:
+        ax.scatter(points[:, 0], points[:, 1], points[:, 2], color='C3', s=14, label='interpolation points')
+    for label, xyz in (point_labels or {}).items():
+        ax.scatter(*xyz, color='k', s=25)
+        ax.text(*xyz, f' {label}')
+    ax.set_xlabel('x'), ax.set_ylabel('y'), ax.set_zlabel('z')
+    _equal_axes(ax, np.vstack(list(curves.values())))
+    ax.set_title(title)
+    ax.legend(loc='upper left', fontsize='small')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _equal_axes(ax, xyz):
+    centre = 0.5 * (xyz.max(axis=0) + xyz.min(axis=0))
+    half = 0.5 * max(float(np.ptp(xyz, axis=0).max()), 1e-9)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+
+
+def plot_loglog(path, x, y, xlabel, ylabel, title):
+    """One curve on log-log axes (the Sec. 3.2 error against the number of points)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.loglog(x, y, marker='o', ms=3)
+    ax.set_xlabel(xlabel), ax.set_ylabel(ylabel), ax.set_title(title)
+    ax.grid(True, which='both', alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,21 @@
+"""Time profiles of joint (or path) coordinates: the paper's interpolation methods.
+
+>>> from picking_planner import trajectory
+>>> seg = trajectory.lspb(15.0, 75.0, 3.0, 42.0)     # degrees, s, deg/s^2
+>>> q, qd, qdd = seg.sample([0.0, 1.5, 3.0])
+
+Every constructor returns a :class:`PiecewisePolynomial` (or a subclass with
+extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
+``(len(t), n_joints)``.
+"""
+
+from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb
+from .piecewise import PiecewisePolynomial, concatenate, hold
+from .polynomial import cubic, hermite_coeffs, quintic
+from .via import quintic_via
+
+__all__ = [
+    'PiecewisePolynomial', 'Lspb', 'ViaLspb',
+    'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'quintic_via',
+    'concatenate', 'hold', 'hermite_coeffs',
+]

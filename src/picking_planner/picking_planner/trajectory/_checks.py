@@ -1,0 +1,97 @@
+"""Input validation shared by the trajectory constructors.
+
+Every public function turns its arguments into float arrays here, so that a bad
+input is refused with a ValueError that names the argument, before any maths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_joint_vector(x, name: str, n: int | None = None) -> np.ndarray:
+    """A finite 1-D float array (a scalar becomes one joint).
+
+    Parameters
+    ----------
+    x : float or array_like
+    name : str
+        Argument name for the error message.
+    n : int, optional
+        Required length; a scalar is broadcast to it.
+    """
+    try:
+        arr = np.array(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name} must be a number or a sequence of numbers') from exc
+    if arr.ndim == 0:
+        arr = np.full(1 if n is None else n, float(arr))
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f'{name} must be a number or a non-empty 1-D sequence, got shape {arr.shape}')
+    if n is not None and arr.size != n:
+        raise ValueError(f'{name} has {arr.size} values, expected {n} (one per joint)')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name} must be finite, got {arr.tolist()}')
+    return arr
+
+
+def as_duration(duration, name: str = 'duration') -> float:
+    """A finite, strictly positive number of seconds."""
+    try:
+        value = float(duration)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name} must be a number of seconds') from exc
+    if not np.isfinite(value) or value <= 0.0:
+        raise ValueError(f'{name} must be a finite number of seconds > 0, got {duration!r}')
+    return value
+
+
+def as_time_array(t) -> np.ndarray:
+    """Sample times as a finite 1-D float array."""
+    try:
+        arr = np.array(t, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError('t must be a number or a 1-D sequence of times') from exc
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1:
+        raise ValueError(f't must be a number or a 1-D sequence, got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError('t must be finite')
+    return arr
+
+
+def as_points(points, name: str = 'points', min_points: int = 2) -> np.ndarray:
+    """Way points as a finite (m, n_joints) array; a 1-D input is one joint."""
+    try:
+        arr = np.array(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name} must be a sequence of joint positions') from exc
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape[0] < min_points or arr.shape[1] < 1:
+        raise ValueError(f'{name} must have at least {min_points} rows of joint positions, '
+                         f'got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name} must be finite')
+    return arr
+
+
+def as_durations(durations, m: int) -> np.ndarray:
+    """``m`` finite, strictly positive segment durations (a scalar is repeated)."""
+    try:
+        arr = np.array(durations, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError('durations must be numbers of seconds') from exc
+    if arr.ndim == 0:
+        arr = np.full(m, float(arr))
+    if arr.ndim != 1 or arr.size != m:
+        raise ValueError(f'durations must have one value per segment ({m}), got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise ValueError(f'durations must be finite and > 0 s, got {arr.tolist()}')
+    return arr
+
+
+def broadcast_joints(n: int, **vectors) -> list[np.ndarray]:
+    """Validate several per-joint vectors and broadcast them to ``n`` joints."""
+    return [as_joint_vector(v, name, n) for name, v in vectors.items()]

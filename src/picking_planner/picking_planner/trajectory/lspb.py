@@ -1,0 +1,247 @@
+"""Linear segments with parabolic blends (paper Sec. 2.4.2, Eq. 15-20, Figs. 6-12).
+
+``lspb`` is one move between two points; ``via_lspb`` passes a sequence of
+via points in Craig's scheme (Fig. 12): the first and last points are reached
+exactly, the interior ones are rounded by parabolic blends of the given
+acceleration centred on their times.
+
+Both are built as "phases" per joint (constant acceleration each: blend,
+cruise, blend, ...), whose boundaries differ from joint to joint; they are then
+merged into one piecewise polynomial with the union of the boundaries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_duration, as_durations, as_joint_vector, as_points
+from .piecewise import PiecewisePolynomial, merge_joint_pieces
+from .polynomial import _end_points
+
+# Relative slack for "exactly the minimum acceleration": a value equal to the
+# bound up to rounding gives the triangular profile instead of an error.
+_RTOL = 1e-9
+
+
+def _accel(accel, n):
+    a = as_joint_vector(accel, 'accel', n)
+    if np.any(a <= 0.0):
+        raise ValueError(f'accel must be > 0 (a magnitude, unit/s^2), got {a.tolist()}')
+    return a
+
+
+def _from_phases(bounds, q, v, a):
+    """Merge constant-acceleration phases (P per joint) into breaks and coeffs."""
+    coeffs = np.zeros((q.shape[0], 6, q.shape[1]))
+    coeffs[:, 0], coeffs[:, 1], coeffs[:, 2] = q, v, 0.5 * a
+    return merge_joint_pieces(bounds, coeffs)
+
+
+class Lspb(PiecewisePolynomial):
+    """A one-segment LSPB move; see :func:`lspb`.
+
+    Attributes
+    ----------
+    blend_time : ndarray, shape (n_joints,)
+        ``t_a`` of Eq. 19, s.
+    blend_position : ndarray, shape (n_joints,)
+        ``theta_a``, the position where the first blend ends (Eq. 16).
+    cruise_velocity : ndarray, shape (n_joints,)
+        Velocity of the linear part, ``theta_ddot * t_a`` (signed).
+    accel : ndarray, shape (n_joints,)
+        Blend acceleration magnitude used.
+    min_accel : ndarray, shape (n_joints,)
+        ``4 |qf - q0| / tf^2`` of Eq. 20.
+    """
+
+    __slots__ = ('blend_time', 'blend_position', 'cruise_velocity', 'accel', 'min_accel')
+
+
+def min_lspb_accel(q0, qf, duration):
+    """Smallest blend acceleration for which an LSPB move exists (Eq. 20).
+
+    Returns ``4 |qf - q0| / duration^2`` per joint, unit/s^2.
+    """
+    q0, qf = _end_points(q0, qf)
+    duration = as_duration(duration)
+    return 4.0 * np.abs(qf - q0) / duration**2
+
+
+def lspb(q0, qf, duration, accel):
+    """Linear segment with parabolic blends between two points (Eq. 15-20).
+
+    Every joint starts and ends at rest and takes ``duration``; each joint
+    accelerates at ``accel`` for its blend time ``t_a`` (Eq. 19), cruises, and
+    decelerates symmetrically: the profile is symmetric about
+    ``(tf/2, (q0 + qf)/2)`` (Fig. 8).
+
+    Parameters
+    ----------
+    q0, qf : float or array_like, shape (n_joints,)
+        Start and goal positions.
+    duration : float
+        Move time ``tf``, s (> 0).
+    accel : float or array_like, shape (n_joints,)
+        Blend acceleration magnitude, unit/s^2 (> 0).
+
+    Returns
+    -------
+    Lspb
+
+    Raises
+    ------
+    ValueError
+        If ``accel < 4 |qf - q0| / duration^2`` for a joint (Eq. 20); the
+        message names the minimum. Exactly the minimum gives a triangular
+        velocity profile (no cruise).
+    """
+    q0, qf = _end_points(q0, qf)
+    duration = as_duration(duration)
+    n = q0.size
+    a = _accel(accel, n)
+    h = qf - q0
+    s = np.sign(h)
+    amin = 4.0 * np.abs(h) / duration**2
+    short = a < amin * (1.0 - _RTOL)
+    if np.any(short):
+        j = int(np.argmax(short))
+        raise ValueError(
+            f'accel {a[j]:.6g} is too small for joint {j}: moving {h[j]:.6g} in {duration:.6g} s '
+            f'needs at least 4|qf-q0|/duration^2 = {amin[j]:.6g} (Eq. 20)')
+    disc = np.maximum(a**2 * duration**2 - 4.0 * a * np.abs(h), 0.0)
+    tb = np.minimum(duration / 2.0 - np.sqrt(disc) / (2.0 * a), duration / 2.0)
+    acc = s * a
+    vc = acc * tb
+    qa = q0 + 0.5 * acc * tb**2
+    zeros = np.zeros(n)
+    bounds = np.stack([zeros, tb, duration - tb, np.full(n, duration)])
+    breaks, coeffs = _from_phases(
+        bounds,
+        q=np.stack([q0, qa, qf - 0.5 * acc * tb**2]),
+        v=np.stack([zeros, vc, vc]),
+        a=np.stack([acc, zeros, -acc]))
+    out = Lspb(breaks, coeffs)
+    out.blend_time, out.blend_position, out.cruise_velocity = tb, qa, vc
+    out.accel, out.min_accel = a, amin
+    return out
+
+
+class ViaLspb(PiecewisePolynomial):
+    """A multi-segment LSPB through via points; see :func:`via_lspb`.
+
+    Attributes
+    ----------
+    via_times : ndarray, shape (m + 1,)
+        Times at which the via points are due, s (first 0, last the duration).
+    blend_times : ndarray, shape (m + 1, n_joints)
+        Blend length at each point, s (end blends lie inside the segment,
+        interior blends are centred on the via time).
+    segment_velocities : ndarray, shape (m, n_joints)
+        Velocity of each linear part.
+    """
+
+    __slots__ = ('via_times', 'blend_times', 'segment_velocities')
+
+
+def via_lspb(points, durations, accel):
+    """Linear segments with parabolic blends through via points (Fig. 12).
+
+    Craig's scheme: the path starts and ends at rest exactly at the first and
+    last points; between, straight lines join consecutive via points at their
+    times, and at each interior via point a parabolic blend of acceleration
+    ``accel`` rounds the corner (the via point itself is approached, not passed,
+    as the paper notes for Fig. 12).
+
+    Parameters
+    ----------
+    points : array_like, shape (m + 1, n_joints)
+        Via points; a 1-D sequence is one joint.
+    durations : float or array_like, shape (m,)
+        Time between consecutive via points, s.
+    accel : float or array_like, shape (n_joints,)
+        Blend acceleration magnitude, unit/s^2.
+
+    Returns
+    -------
+    ViaLspb
+
+    Raises
+    ------
+    ValueError
+        If a segment is too short for its blends at this acceleration; the
+        message names the segment, the joint and the time the blends need.
+    """
+    points = as_points(points)
+    m = points.shape[0] - 1
+    td = as_durations(durations, m)
+    n = points.shape[1]
+    a = _accel(accel, n)
+    if m == 1:
+        single = lspb(points[0], points[1], td[0], a)
+        out = ViaLspb(single.breaks, single.coeffs)
+        out.via_times = np.array([0.0, td[0]])
+        out.blend_times = np.stack([single.blend_time, single.blend_time])
+        out.segment_velocities = single.cruise_velocity[None, :]
+        return out
+
+    dq = np.diff(points, axis=0)                                    # (m, n)
+    tb = np.zeros((m + 1, n))
+    vel = dq / td[:, None]
+    for end, k in (('first', 0), ('last', m - 1)):
+        disc = td[k] ** 2 - 2.0 * np.abs(dq[k]) / a
+        if np.any(disc < -_RTOL * td[k] ** 2):
+            j = int(np.argmin(disc))
+            raise ValueError(
+                f'accel {a[j]:.6g} is too small for the {end} segment of joint {j}: '
+                f'moving {dq[k, j]:.6g} in {td[k]:.6g} s needs at least '
+                f'2|dq|/duration^2 = {2.0 * abs(dq[k, j]) / td[k] ** 2:.6g}')
+        t_end = td[k] - np.sqrt(np.maximum(disc, 0.0))
+        tb[0 if k == 0 else m] = t_end
+        vel[k] = dq[k] / (td[k] - 0.5 * t_end)
+    tb[1:m] = np.abs(np.diff(vel, axis=0)) / a
+    linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
+    linear[0] -= 0.5 * tb[0]
+    linear[-1] -= 0.5 * tb[-1]
+    if np.any(linear < -_RTOL * td[:, None]):
+        k, j = np.unravel_index(int(np.argmin(linear)), linear.shape)
+        need = td[k] - linear[k, j]
+        raise ValueError(
+            f'segment {k} (between via points {k} and {k + 1}) of joint {j} is too short for '
+            f'its blends at accel {a[j]:.6g}: the blends need {need:.6g} s but the segment '
+            f'lasts {td[k]:.6g} s; raise accel or lengthen the segment')
+
+    times = np.concatenate(([0.0], np.cumsum(td)))
+    # Phase boundaries, per joint: blend_0, line_0, blend_1, line_1, ..., blend_m.
+    bounds = np.empty((2 * m + 2, n))
+    bounds[0] = 0.0
+    bounds[1] = tb[0]
+    bounds[2:2 * m:2] = times[1:m, None] - 0.5 * tb[1:m]
+    bounds[3:2 * m:2] = times[1:m, None] + 0.5 * tb[1:m]
+    bounds[2 * m] = times[m] - tb[m]
+    bounds[2 * m + 1] = times[m]
+    bounds = np.maximum.accumulate(np.clip(bounds, 0.0, times[m]), axis=0)
+
+    starts = bounds[:-1]                                            # (2m+1, n)
+    # Phase p: 0 is the start blend, odd p = 2k+1 is line k, even p = 2k >= 2 is
+    # the blend at via point k, which starts on line k-1. Line k passes via
+    # point k+1 at its time (the last line: via point m-1) with velocity vel[k];
+    # Craig's end-segment velocities make the first and last lines meet the
+    # end blends.
+    p = np.arange(2 * m + 1)
+    line = np.clip(np.where(p % 2 == 1, (p - 1) // 2, p // 2 - 1), 0, m - 1)
+    anchor = np.where(line < m - 1, line + 1, m - 1)
+    line = np.broadcast_to(line[:, None], (2 * m + 1, n))
+    anchor = np.broadcast_to(anchor[:, None], (2 * m + 1, n))
+    cols = np.arange(n)[None, :]
+    q_start = points[anchor, cols] + vel[line, cols] * (starts - times[anchor])
+    v_start = vel[line, cols].copy()
+    q_start[0], v_start[0] = points[0], 0.0
+    acc = np.zeros((2 * m + 1, n))
+    acc[0] = np.sign(vel[0]) * a
+    acc[2:2 * m:2] = np.sign(np.diff(vel, axis=0)) * a
+    acc[2 * m] = -np.sign(vel[-1]) * a
+
+    breaks, coeffs = _from_phases(bounds, q_start, v_start, acc)
+    out = ViaLspb(breaks, coeffs)
+    out.via_times, out.blend_times, out.segment_velocities = times, tb, vel
+    return out

@@ -1,0 +1,312 @@
+"""One representation for every time profile: a piecewise polynomial in time.
+
+Cubic and quintic moves are one segment; LSPB is three (blend, cruise, blend);
+via-point LSPB and quintic splines are many. All of them share one sampler, so
+composition (``then``, ``concatenate``) and vectorised sampling come for free.
+
+Segment ``k`` covers ``[breaks[k], breaks[k+1]]`` and is stored in local time
+``tau = t - breaks[k]`` in the power basis::
+
+    q(t) = sum_i coeffs[k, i, j] * tau**i        for joint j
+
+Units are whatever the caller used for positions (rad, m, or degrees in the
+paper's examples); time is in seconds.
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from ._checks import as_duration, as_joint_vector, as_time_array
+
+#: Largest polynomial degree stored (quintic).
+MAX_DEGREE = 5
+_N_COEFFS = MAX_DEGREE + 1
+
+# Factors that turn power-basis coefficients into those of the first and
+# second derivative: d/dtau sum c_i tau^i = sum i c_i tau^(i-1).
+_D1 = np.arange(1, _N_COEFFS, dtype=float)
+_D2 = _D1[1:] * np.arange(1, _N_COEFFS - 1, dtype=float)
+
+
+class PiecewisePolynomial:
+    """A joint-space trajectory made of polynomial segments of degree <= 5.
+
+    Parameters
+    ----------
+    breaks : array_like, shape (m + 1,)
+        Strictly increasing segment boundaries, s. ``breaks[0]`` is usually 0.
+    coeffs : array_like, shape (m, d + 1, n_joints)
+        Power-basis coefficients in each segment's local time, lowest order
+        first; ``d <= 5``.
+
+    Notes
+    -----
+    Objects are immutable: the arrays are stored read-only. Sampling before
+    the start holds the first point and after the end holds the last point at
+    rest, the way a controller holds its goal.
+    """
+
+    __slots__ = ('_breaks', '_coeffs', '_end_state')
+
+    def __init__(self, breaks, coeffs):
+        breaks = np.array(breaks, dtype=float)
+        coeffs = np.array(coeffs, dtype=float)
+        if breaks.ndim != 1 or breaks.size < 2:
+            raise ValueError('breaks must be a 1-D array with at least two times')
+        if coeffs.ndim != 3 or coeffs.shape[0] != breaks.size - 1:
+            raise ValueError(
+                f'coeffs must have shape (segments={breaks.size - 1}, degree+1, n_joints); '
+                f'got {coeffs.shape}')
+        if not 1 <= coeffs.shape[1] <= _N_COEFFS or coeffs.shape[2] < 1:
+            raise ValueError(f'polynomial degree must be 0..{MAX_DEGREE} and n_joints >= 1')
+        if not (np.all(np.isfinite(breaks)) and np.all(np.isfinite(coeffs))):
+            raise ValueError('breaks and coeffs must be finite')
+        if np.any(np.diff(breaks) <= 0.0):
+            raise ValueError('breaks must be strictly increasing')
+        padded = np.zeros((coeffs.shape[0], _N_COEFFS, coeffs.shape[2]))
+        padded[:, :coeffs.shape[1], :] = coeffs
+        breaks.flags.writeable = False
+        padded.flags.writeable = False
+        self._breaks = breaks
+        self._coeffs = padded
+        self._end_state = None
+
+    # -- shape and time -------------------------------------------------
+    @property
+    def breaks(self) -> np.ndarray:
+        """Segment boundaries, s (read-only)."""
+        return self._breaks
+
+    @property
+    def coeffs(self) -> np.ndarray:
+        """Coefficients, shape (segments, 6, n_joints), lowest order first."""
+        return self._coeffs
+
+    @property
+    def n_joints(self) -> int:
+        return self._coeffs.shape[2]
+
+    @property
+    def start_time(self) -> float:
+        return float(self._breaks[0])
+
+    @property
+    def end_time(self) -> float:
+        return float(self._breaks[-1])
+
+    @property
+    def duration(self) -> float:
+        """Length of the trajectory, s."""
+        return float(self._breaks[-1] - self._breaks[0])
+
+    def __repr__(self) -> str:
+        return (f'{type(self).__name__}(duration={self.duration:.6g} s, '
+                f'segments={len(self._breaks) - 1}, n_joints={self.n_joints})')
+
+    # -- sampling ---------------------------------------------------------
+    def sample(self, t):
+        """Position, velocity and acceleration at time(s) ``t``.
+
+        Parameters
+        ----------
+        t : float or array_like, shape (N,)
+            Times, s, on the trajectory's own clock (``breaks[0]`` is its start).
+            Times outside the trajectory hold its end points at rest.
+
+        Returns
+        -------
+        q, qd, qdd : ndarray, each shape (N, n_joints)
+            Position, velocity (per s) and acceleration (per s^2).
+        """
+        t = as_time_array(t)
+        breaks, coeffs = self._breaks, self._coeffs
+        before = t < breaks[0]
+        after = t > breaks[-1]
+        tc = np.clip(t, breaks[0], breaks[-1])
+        if coeffs.shape[0] == 1:
+            # One segment: a single matrix product with the power basis.
+            tau = tc - breaks[0]
+            q, qd, qdd = _eval_one(tau, coeffs[0])
+        else:
+            seg = np.searchsorted(breaks, tc, side='right') - 1
+            np.clip(seg, 0, coeffs.shape[0] - 1, out=seg)
+            tau = tc - breaks[seg]
+            q, qd, qdd = _eval_many(tau, coeffs[seg])
+        if before.any() or after.any():
+            q0, _, _ = self.start_state()
+            qf, _, _ = self.end_state()
+            q[before] = q0
+            q[after] = qf
+            qd[before | after] = 0.0
+            qdd[before | after] = 0.0
+        return q, qd, qdd
+
+    def start_state(self):
+        """``(q, qd, qdd)`` at the start, each shape (n_joints,)."""
+        c = self._coeffs[0]
+        return c[0].copy(), c[1].copy(), 2.0 * c[2]
+
+    def end_state(self):
+        """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
+        if self._end_state is None:
+            tau = np.array([self._breaks[-1] - self._breaks[-2]])
+            q, qd, qdd = _eval_one(tau, self._coeffs[-1])
+            self._end_state = (q[0], qd[0], qdd[0])
+        return tuple(x.copy() for x in self._end_state)
+
+    # -- composition ------------------------------------------------------
+    def shifted(self, dt: float) -> 'PiecewisePolynomial':
+        """The same trajectory starting ``dt`` seconds later."""
+        return PiecewisePolynomial(self._breaks + float(dt), self._coeffs)
+
+    def then(self, other: 'PiecewisePolynomial') -> 'PiecewisePolynomial':
+        """This trajectory followed by ``other`` (see :func:`concatenate`)."""
+        return concatenate([self, other])
+
+    def segment_end_times(self) -> np.ndarray:
+        """The times at which segments end, s (for plotting and reports)."""
+        return self._breaks[1:].copy()
+
+
+def _eval_one(tau, c):
+    """Evaluate one segment's polynomial at local times ``tau``: three GEMMs."""
+    powers = np.power.outer(tau, np.arange(_N_COEFFS, dtype=float))
+    q = powers @ c
+    qd = powers[:, :-1] @ (c[1:] * _D1[:, None])
+    qdd = powers[:, :-2] @ (c[2:] * _D2[:, None])
+    return q, qd, qdd
+
+
+def _eval_many(tau, c):
+    """Horner's rule with a different segment per sample; ``c`` is (N, 6, n)."""
+    tau = tau[:, None]
+    q = c[:, 5] * tau + c[:, 4]
+    qd = 5.0 * c[:, 5] * tau + 4.0 * c[:, 4]
+    qdd = 20.0 * c[:, 5] * tau + 12.0 * c[:, 4]
+    for i in (3, 2):
+        q = q * tau + c[:, i]
+        qd = qd * tau + i * c[:, i]
+    qdd = qdd * tau + 6.0 * c[:, 3]
+    qdd = qdd * tau + 2.0 * c[:, 2]
+    q = (q * tau + c[:, 1]) * tau + c[:, 0]
+    qd = qd * tau + c[:, 1]
+    return q, qd, qdd
+
+
+def taylor_shift(coeffs, dt):
+    """Re-expand power-basis polynomials about a later origin.
+
+    Parameters
+    ----------
+    coeffs : ndarray, shape (K, 6, n)
+        Polynomials in local time ``tau``.
+    dt : ndarray, shape (K,) or (K, n)
+        New origin ``tau = dt`` for each polynomial (per joint if 2-D).
+
+    Returns
+    -------
+    ndarray, shape (K, 6, n)
+        Coefficients ``c'`` with ``p(tau) = sum c'_i (tau - dt)^i``.
+    """
+    dt = np.asarray(dt, dtype=float)
+    if dt.ndim == 1:
+        dt = dt[:, None]
+    out = np.zeros_like(coeffs)
+    for k in range(_N_COEFFS):
+        for i in range(k, _N_COEFFS):
+            out[:, k] += comb(i, k) * coeffs[:, i] * dt ** (i - k)
+    return out
+
+
+def merge_joint_pieces(joint_breaks, joint_coeffs, rtol=1e-12):
+    """Combine per-joint piecewise polynomials with different breaks into one.
+
+    Parameters
+    ----------
+    joint_breaks : ndarray, shape (P + 1, n)
+        Non-decreasing boundaries of each joint's P pieces (zero-width pieces
+        are allowed and ignored).
+    joint_coeffs : ndarray, shape (P, 6, n)
+        Each joint's piece polynomials in the piece's local time.
+
+    Returns
+    -------
+    PiecewisePolynomial
+        Breaks at the union of all joints' boundaries.
+    """
+    joint_breaks = np.asarray(joint_breaks, dtype=float)
+    n_pieces, _, n = joint_coeffs.shape
+    union = np.unique(joint_breaks)
+    span = union[-1] - union[0]
+    # Fold boundaries that differ only by rounding into one.
+    keep = np.concatenate(([True], np.diff(union) > rtol * max(span, 1.0)))
+    union = union[keep]
+    union[-1] = joint_breaks[-1].max()
+    starts = union[:-1]
+    mids = 0.5 * (union[:-1] + union[1:])
+    # Piece index of each joint at each interval midpoint, vectorised over joints.
+    piece = (mids[:, None, None] >= joint_breaks[None, 1:-1, :]).sum(axis=1)  # (K, n)
+    np.clip(piece, 0, n_pieces - 1, out=piece)
+    cols = np.arange(n)[None, :]
+    local = joint_coeffs.transpose(0, 2, 1)[piece, cols]          # (K, n, 6)
+    dt = starts[:, None] - joint_breaks[piece, cols]              # (K, n)
+    shifted = taylor_shift(local.transpose(0, 2, 1), dt)          # (K, 6, n)
+    return union, shifted
+
+
+def concatenate(trajectories):
+    """Join trajectories end to start into one.
+
+    Each trajectory is shifted in time to start where the previous one ends.
+    Positions and velocities must meet at the joins (within 1e-9 relative); a
+    :class:`ValueError` names the first join that does not. Accelerations may
+    step, as they do inside cubic and LSPB moves.
+
+    Parameters
+    ----------
+    trajectories : sequence of PiecewisePolynomial
+        At least one, all with the same number of joints.
+
+    Returns
+    -------
+    PiecewisePolynomial
+    """
+    trajectories = list(trajectories)
+    if not trajectories:
+        raise ValueError('concatenate needs at least one trajectory')
+    n = trajectories[0].n_joints
+    breaks = [trajectories[0].breaks - trajectories[0].start_time]
+    coeffs = [trajectories[0].coeffs]
+    t_end = breaks[0][-1]
+    for i, (prev, nxt) in enumerate(zip(trajectories, trajectories[1:]), start=1):
+        if nxt.n_joints != n:
+            raise ValueError(f'trajectory {i} has {nxt.n_joints} joints, the first has {n}')
+        for name, a, b in zip(('position', 'velocity'), prev.end_state(), nxt.start_state()):
+            scale = max(1.0, float(np.max(np.abs(a))), float(np.max(np.abs(b))))
+            if np.max(np.abs(a - b)) > 1e-9 * scale:
+                raise ValueError(
+                    f'trajectory {i} does not start where trajectory {i - 1} ends: '
+                    f'{name} {np.round(b, 9).tolist()} != {np.round(a, 9).tolist()}')
+        breaks.append(nxt.breaks[1:] - nxt.start_time + t_end)
+        coeffs.append(nxt.coeffs)
+        t_end = breaks[-1][-1]
+    return PiecewisePolynomial(np.concatenate(breaks), np.concatenate(coeffs))
+
+
+def hold(q, duration):
+    """Stand still at ``q`` for ``duration`` seconds (a dwell, e.g. a grasp).
+
+    Parameters
+    ----------
+    q : float or array_like, shape (n_joints,)
+    duration : float
+        Seconds, > 0.
+    """
+    q = as_joint_vector(q, 'q')
+    duration = as_duration(duration)
+    coeffs = np.zeros((1, 1, q.size))
+    coeffs[0, 0] = q
+    return PiecewisePolynomial([0.0, duration], coeffs)

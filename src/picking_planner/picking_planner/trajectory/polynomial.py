@@ -1,0 +1,133 @@
+"""Point-to-point polynomial moves: the paper's cubic (Sec. 2.4.1) and the quintic.
+
+Both are Hermite polynomials fixed by the end conditions; the closed forms
+below are the solution of the paper's Eq. 10 (cubic) and its quintic analogue.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_duration, as_joint_vector
+from .piecewise import PiecewisePolynomial
+
+
+def hermite_coeffs(q0, v0, a0, q1, v1, a1, duration):
+    """Power-basis coefficients of the quintic meeting both end states.
+
+    Vectorised: every argument broadcasts, ``duration`` included, so one call
+    builds all segments of a spline. With ``a0 = a1 = None`` it returns the
+    cubic through positions and velocities; with velocities also ``None``, the
+    straight line.
+
+    Parameters
+    ----------
+    q0, v0, a0, q1, v1, a1 : array_like
+        Start and end position, velocity, acceleration (``a*``/``v*`` may be None).
+    duration : array_like
+        Segment length, s (> 0).
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        ``c0..c5`` with ``q(tau) = sum c_i tau^i``, ``0 <= tau <= duration``.
+    """
+    T = np.asarray(duration, dtype=float)
+    q0 = np.asarray(q0, dtype=float)
+    h = np.asarray(q1, dtype=float) - q0
+    shape = np.broadcast_shapes(q0.shape, h.shape, T.shape)
+    c = np.zeros(shape + (6,))
+    c[..., 0] = q0
+    if v0 is None:                      # linear
+        c[..., 1] = h / T
+        return c
+    v0 = np.asarray(v0, dtype=float)
+    v1 = np.asarray(v1, dtype=float)
+    c[..., 1] = v0
+    if a0 is None:                      # cubic (Eq. 11 when v0 = v1 = 0)
+        c[..., 2] = (3.0 * h - (2.0 * v0 + v1) * T) / T**2
+        c[..., 3] = (-2.0 * h + (v0 + v1) * T) / T**3
+        return c
+    a0 = np.asarray(a0, dtype=float)
+    a1 = np.asarray(a1, dtype=float)
+    c[..., 2] = 0.5 * a0
+    c[..., 3] = (20.0 * h - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T**2) / (2.0 * T**3)
+    c[..., 4] = (-30.0 * h + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T**2) / (2.0 * T**4)
+    c[..., 5] = (12.0 * h - 6.0 * (v1 + v0) * T + (a1 - a0) * T**2) / (2.0 * T**5)
+    return c
+
+
+def _end_points(q0, qf):
+    """q0 and qf as equal-length joint vectors (a scalar broadcasts)."""
+    a = as_joint_vector(q0, 'q0')
+    b = as_joint_vector(qf, 'qf')
+    if a.size == 1 and b.size > 1:
+        a = np.full(b.size, a[0])
+    elif b.size == 1 and a.size > 1:
+        b = np.full(a.size, b[0])
+    if a.size != b.size:
+        raise ValueError(f'q0 has {a.size} joints but qf has {b.size}')
+    return a, b
+
+
+def _single(coeffs, duration):
+    """One-segment trajectory from (n_joints, 6) coefficients."""
+    return PiecewisePolynomial([0.0, duration], coeffs.T[None, :, :])
+
+
+def cubic(q0, qf, duration, v0=0.0, vf=0.0):
+    """Cubic polynomial move (paper Sec. 2.4.1, Eq. 8-12).
+
+    ``theta(t) = a0 + a1 t + a2 t^2 + a3 t^3`` with ``theta(0) = q0``,
+    ``theta(tf) = qf`` and end velocities ``v0``, ``vf`` (zero by default, Eq. 7).
+
+    Parameters
+    ----------
+    q0, qf : float or array_like, shape (n_joints,)
+        Start and goal positions (rad, m, or any consistent unit).
+    duration : float
+        Move time ``tf``, s (> 0).
+    v0, vf : float or array_like, shape (n_joints,)
+        Start and end velocities, unit/s.
+
+    Returns
+    -------
+    PiecewisePolynomial
+        One segment; ``coeffs[0, :4]`` are ``a0..a3`` of Eq. 11.
+    """
+    q0, qf = _end_points(q0, qf)
+    duration = as_duration(duration)
+    n = q0.size
+    v0 = as_joint_vector(v0, 'v0', n)
+    vf = as_joint_vector(vf, 'vf', n)
+    return _single(hermite_coeffs(q0, v0, None, qf, vf, None, duration), duration)
+
+
+def quintic(q0, qf, duration, v0=0.0, vf=0.0, a0=0.0, af=0.0):
+    """Quintic polynomial move with given end velocities and accelerations.
+
+    Zero end velocities and accelerations by default, which gives the
+    minimum-jerk profile; continuous acceleration, unlike the cubic.
+
+    Parameters
+    ----------
+    q0, qf : float or array_like, shape (n_joints,)
+        Start and goal positions.
+    duration : float
+        Move time, s (> 0).
+    v0, vf : float or array_like
+        End velocities, unit/s.
+    a0, af : float or array_like
+        End accelerations, unit/s^2.
+
+    Returns
+    -------
+    PiecewisePolynomial
+        One segment of degree 5.
+    """
+    q0, qf = _end_points(q0, qf)
+    duration = as_duration(duration)
+    n = q0.size
+    v0, vf, a0, af = (as_joint_vector(x, name, n) for name, x in
+                      (('v0', v0), ('vf', vf), ('a0', a0), ('af', af)))
+    return _single(hermite_coeffs(q0, v0, a0, qf, vf, af, duration), duration)

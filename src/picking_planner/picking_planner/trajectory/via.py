@@ -1,0 +1,66 @@
+"""Piecewise quintics through via points with positions, velocities, accelerations.
+
+The paper's Sec. 3.1 step D gives each via point its position, velocity and
+acceleration; a quintic per segment meets all six end conditions, so the path
+passes every via point exactly with continuous position, velocity and
+acceleration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ._checks import as_durations, as_points
+from .piecewise import PiecewisePolynomial
+from .polynomial import hermite_coeffs
+
+
+def _per_point(values, name, shape):
+    arr = as_points(values, name, min_points=shape[0])
+    if arr.shape != shape:
+        raise ValueError(f'{name} must have shape {shape} (one row per via point), got {arr.shape}')
+    return arr
+
+
+def quintic_via(points, durations, velocities=None, accelerations=None):
+    """Quintic segments through via points, exact at every point (Sec. 3.1 D).
+
+    Parameters
+    ----------
+    points : array_like, shape (m + 1, n_joints)
+        Via points; a 1-D sequence is one joint.
+    durations : float or array_like, shape (m,)
+        Time of each segment, s (a scalar for all).
+    velocities : array_like, shape (m + 1, n_joints), optional
+        Velocity at each via point. When omitted, the path starts and ends at
+        rest and the interior velocities and accelerations are those of the
+        C2 cubic spline through the points (clamped to zero end velocity), so
+        the motion is smooth without any tuning.
+    accelerations : array_like, shape (m + 1, n_joints), optional
+        Acceleration at each via point. When omitted with velocities given,
+        the ends get zero and interior points the central difference of the
+        given velocities.
+
+    Returns
+    -------
+    PiecewisePolynomial
+        ``m`` quintic segments, breaks at the via times.
+    """
+    points = as_points(points)
+    m = points.shape[0] - 1
+    td = as_durations(durations, m)
+    times = np.concatenate(([0.0], np.cumsum(td)))
+    if velocities is None:
+        spline = CubicSpline(times, points, bc_type='clamped', axis=0)
+        vel = spline(times, 1)
+        acc = spline(times, 2)
+        acc[[0, -1]] = 0.0
+    else:
+        vel = _per_point(velocities, 'velocities', points.shape)
+        acc = np.zeros_like(points)
+        acc[1:-1] = (vel[2:] - vel[:-2]) / (times[2:] - times[:-2])[:, None]
+    if accelerations is not None:
+        acc = _per_point(accelerations, 'accelerations', points.shape)
+    c = hermite_coeffs(points[:-1], vel[:-1], acc[:-1], points[1:], vel[1:], acc[1:], td[:, None])
+    return PiecewisePolynomial(times, c.transpose(0, 2, 1))

@@ -1,0 +1,105 @@
+"""Lines, arcs and timed Cartesian paths."""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, strategies as st
+from scipy.spatial.transform import Rotation
+
+from picking_planner import geometry
+
+coord = st.floats(-5.0, 5.0, allow_nan=False)
+point = st.tuples(coord, coord, coord).map(np.array)
+
+
+@given(point, point, point)
+def test_arc_passes_its_three_points_and_stays_on_its_circle(p1, p2, p3):
+    a, b = p2 - p1, p3 - p1
+    assume(min(np.linalg.norm(a), np.linalg.norm(b), np.linalg.norm(p3 - p2)) > 1e-2)
+    assume(np.linalg.norm(np.cross(a, b)) > 1e-2 * np.linalg.norm(a) * np.linalg.norm(b))
+    arc = geometry.Arc.through(p1, p2, p3)
+    pts = arc.points(2001)
+    assert pts[0] == pytest.approx(p1, abs=1e-9)
+    assert pts[-1] == pytest.approx(p3, abs=1e-9)
+    assert np.linalg.norm(pts - arc.center, axis=1) == pytest.approx(np.full(2001, arc.radius))
+    assert np.abs((pts - arc.center) @ arc.normal).max() < 1e-9 * max(1.0, arc.radius)
+    # p2 lies on the path between p1 and p3.
+    assert np.linalg.norm(pts - p2, axis=1).min() < arc.length / 2000 + 1e-9
+
+
+def test_arc_beyond_180_degrees():
+    # p2 on the far side: from (1,0,0) through (0,-1,0) to (0,1,0) around the unit circle.
+    arc = geometry.Arc.through((1, 0, 0), (0, -1, 0), (0, 1, 0))
+    assert arc.sweep == pytest.approx(1.5 * np.pi)
+    assert arc.normal == pytest.approx([0, 0, -1])
+    mid = arc.at(arc.length / 3)[0][0]
+    assert mid == pytest.approx([0.0, -1.0, 0.0], abs=1e-12)
+
+
+@pytest.mark.parametrize('pts, match', [
+    (((0, 0, 0), (1, 1, 1), (2, 2, 2)), 'collinear'),
+    (((0, 0, 0), (1, 0, 0), (1 + 1e-13, 1e-14, 0)), 'distinct|collinear'),
+    (((0, 0, 0), (0, 0, 0), (1, 0, 0)), 'distinct'),
+    (((0, 0, 0), (1, float('nan'), 0), (1, 0, 0)), 'finite'),
+    (((0, 0, 0), (1, 0), (1, 0, 0)), 'three numbers'),
+])
+def test_arc_refuses_collinear_repeated_and_non_finite_points(pts, match):
+    with pytest.raises(ValueError, match=match):
+        geometry.Arc.through(*pts)
+
+
+def test_arc_derivatives_are_unit_tangent_and_centripetal():
+    arc = geometry.Arc.through((0, 0, 0), (1, 1, 0.5), (2, 0, 1))
+    s = np.linspace(0, arc.length, 50)
+    p, dp, ddp = arc.at(s)
+    assert np.linalg.norm(dp, axis=1) == pytest.approx(np.ones(50))
+    assert np.linalg.norm(ddp, axis=1) == pytest.approx(np.full(50, 1 / arc.radius))
+    h = 1e-6
+    numeric = (arc.at(s[1:-1] + h)[0] - arc.at(s[1:-1] - h)[0]) / (2 * h)
+    assert numeric == pytest.approx(dp[1:-1], abs=1e-6)
+
+
+def test_line_points_and_zero_length_line():
+    line = geometry.Line((0, 0, 0), (0.3, 0.4, 0))
+    assert line.length == pytest.approx(0.5)
+    assert line.points(3)[1] == pytest.approx([0.15, 0.2, 0.0])
+    still = geometry.Line((1, 2, 3), (1, 2, 3))
+    assert still.length == 0.0 and still.points(4) == pytest.approx(np.tile([1, 2, 3], (4, 1)))
+
+
+@pytest.mark.parametrize('profile', geometry.PROFILES)
+def test_cartesian_line_traversed_by_each_profile(profile):
+    line = geometry.Line((0.5, 0.0, 0.3), (0.5, 0.2, 0.3))
+    path = geometry.CartesianPath.timed(line, 2.0, profile)
+    t = np.linspace(0.0, 2.0, 201)
+    p, v, a = path.sample(t)
+    assert p[0] == pytest.approx(line.start) and p[-1] == pytest.approx(line.end)
+    assert v[[0, -1]] == pytest.approx(np.zeros((2, 3)), abs=1e-12)
+    assert np.abs(p[:, [0, 2]] - [0.5, 0.3]).max() < 1e-12   # stays on the line
+    assert np.all(np.diff(p[:, 1]) >= -1e-15)
+    numeric = np.gradient(p[:, 1], t)
+    assert numeric[5:-5] == pytest.approx(v[5:-5, 1], abs=2e-3)
+
+
+def test_cartesian_arc_velocity_is_tangent_and_orientation_is_slerped():
+    arc = geometry.Arc.through((0.5, 0, 0.3), (0.6, 0.1, 0.3), (0.5, 0.2, 0.3))
+    q0 = Rotation.from_euler('xyz', [180, 0, 0], degrees=True)
+    q1 = Rotation.from_euler('xyz', [180, 0, 90], degrees=True)
+    path = geometry.CartesianPath.timed(arc, 1.5, 'lspb',
+                                        orientations=Rotation.concatenate([q0, q1]))
+    t = np.linspace(0, 1.5, 151)
+    p, v, _ = path.sample(t)
+    assert np.abs(np.einsum('ij,ij->i', v, p - arc.center)).max() < 1e-12
+    rots = path.orientations(t)
+    assert (rots[0] * q0.inv()).magnitude() < 1e-9
+    assert (rots[-1] * q1.inv()).magnitude() < 1e-9
+    assert (rots[75] * q0.inv()).magnitude() == pytest.approx(np.pi / 4, abs=1e-9)
+    poses = path.poses(t)
+    assert poses.shape == (151, 4, 4) and poses[-1, :3, 3] == pytest.approx([0.5, 0.2, 0.3])
+
+
+def test_cartesian_path_refuses_bad_profile_and_quaternions():
+    line = geometry.Line((0, 0, 0), (1, 0, 0))
+    with pytest.raises(ValueError, match='unknown profile'):
+        geometry.CartesianPath.timed(line, 1.0, 'septic')
+    with pytest.raises(ValueError, match='non-zero'):
+        geometry.CartesianPath.timed(line, 1.0, orientations=[[0, 0, 0, 0]])

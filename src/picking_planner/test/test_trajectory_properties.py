@@ -1,0 +1,181 @@
+"""Property tests: boundary conditions, continuity, symmetry and refusals over random inputs."""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings, strategies as st
+
+from picking_planner import trajectory
+
+angle = st.floats(-180.0, 180.0, allow_nan=False)
+duration = st.floats(0.05, 20.0, allow_nan=False)
+joints = st.integers(1, 6)
+
+
+def vectors(n):
+    return st.lists(angle, min_size=n, max_size=n).map(np.array)
+
+
+@st.composite
+def moves(draw):
+    n = draw(joints)
+    return draw(vectors(n)), draw(vectors(n)), draw(duration)
+
+
+def _continuous(traj, tol=1e-6):
+    """Position and velocity have no jump at any break."""
+    inner = traj.breaks[1:-1]
+    if inner.size == 0:
+        return
+    eps = 1e-9 * max(1.0, traj.duration)
+    left = traj.sample(inner - eps)
+    right = traj.sample(inner + eps)
+    scale = max(1.0, float(np.abs(left[1]).max()))
+    assert np.abs(left[0] - right[0]).max() <= tol * scale
+    assert np.abs(left[1] - right[1]).max() <= tol * scale * 1e3 * max(1.0, 1.0 / traj.duration)
+
+
+@given(moves())
+def test_cubic_and_quintic_meet_their_end_conditions(move):
+    q0, qf, tf = move
+    for seg in (trajectory.cubic(q0, qf, tf), trajectory.quintic(q0, qf, tf)):
+        q, qd, qdd = seg.sample([0.0, tf])
+        assert q == pytest.approx(np.stack([q0, qf]), abs=1e-9 * (1 + np.abs(qf).max()))
+        assert qd == pytest.approx(np.zeros_like(qd), abs=1e-8 * (1 + np.abs(qf - q0).max()) / tf)
+    qdd = trajectory.quintic(q0, qf, tf).sample([0.0, tf])[2]
+    assert np.abs(qdd).max() <= 1e-7 * (1 + np.abs(qf - q0).max()) / tf**2
+
+
+@given(moves(), st.floats(1.0, 3.0))
+def test_lspb_peak_acceleration_symmetry_and_monotonicity(move, factor):
+    q0, qf, tf = move
+    amin = trajectory.min_lspb_accel(q0, qf, tf)
+    accel = np.maximum(amin * factor, 1e-3)
+    seg = trajectory.lspb(q0, qf, tf, accel)
+    t = np.linspace(0.0, tf, 401)
+    q, qd, qdd = seg.sample(t)
+    # Boundary conditions.
+    assert q[0] == pytest.approx(q0, abs=1e-9 * (1 + np.abs(q0).max()))
+    assert q[-1] == pytest.approx(qf, abs=1e-7 * (1 + np.abs(qf).max()))
+    # Peak |qdd| is the given acceleration (for joints that move).
+    moving = np.abs(qf - q0) > 1e-6
+    assert np.all(np.abs(qdd) <= accel * (1 + 1e-9) + 1e-12)
+    if moving.any():
+        assert np.abs(qdd).max(axis=0)[moving] == pytest.approx(accel[moving])
+    # Fig. 8: symmetric about (tf/2, (q0 + qf)/2).
+    qr, qdr, _ = seg.sample(tf - t)
+    mid = 0.5 * (q0 + qf)
+    assert q - mid == pytest.approx(-(qr - mid), abs=1e-6 * (1 + np.abs(q).max()))
+    assert qd == pytest.approx(qdr, abs=1e-6 * (1 + np.abs(qd).max()))
+    # A monotonic move stays monotonic.
+    steps = np.diff(q, axis=0) * np.sign(qf - q0)
+    assert steps.min() >= -1e-9 * (1 + np.abs(q).max())
+    _continuous(seg)
+
+
+@given(moves(), st.floats(0.01, 0.99))
+def test_lspb_below_eq20_minimum_is_a_value_error(move, fraction):
+    q0, qf, tf = move
+    amin = trajectory.min_lspb_accel(q0, qf, tf)
+    assume(amin.max() > 1e-6)
+    with pytest.raises(ValueError, match='Eq. 20'):
+        trajectory.lspb(q0, qf, tf, amin.max() * fraction)
+
+
+@st.composite
+def via_paths(draw):
+    n = draw(joints)
+    m = draw(st.integers(1, 6))
+    points = np.array([draw(vectors(n)) for _ in range(m + 1)])
+    durations = np.array(draw(st.lists(st.floats(0.2, 5.0), min_size=m, max_size=m)))
+    return points, durations
+
+
+@given(via_paths())
+@settings(deadline=None)
+def test_via_lspb_ends_exact_at_rest_and_continuous(path):
+    points, durations = path
+    # An acceleration large enough for every segment: 8 * max step / shortest duration^2.
+    accel = 8.0 * (np.abs(np.diff(points, axis=0)).max() + 1.0) / durations.min() ** 2
+    traj = trajectory.via_lspb(points, durations, accel)
+    assert traj.duration == pytest.approx(durations.sum())
+    q, qd, qdd = traj.sample([0.0, traj.duration])
+    scale = 1 + np.abs(points).max()
+    assert q == pytest.approx(points[[0, -1]], abs=1e-7 * scale)
+    assert np.abs(qd).max() <= 1e-6 * scale
+    t = np.linspace(0, traj.duration, 1000)
+    assert np.abs(traj.sample(t)[2]).max() <= accel * (1 + 1e-9)
+    _continuous(traj)
+
+
+@given(via_paths())
+@settings(deadline=None)
+def test_quintic_via_passes_every_point_with_continuous_velocity_and_acceleration(path):
+    points, durations = path
+    traj = trajectory.quintic_via(points, durations)
+    times = np.concatenate(([0.0], np.cumsum(durations)))
+    q, qd, qdd = traj.sample(times)
+    scale = 1 + np.abs(points).max()
+    assert q == pytest.approx(points, abs=1e-7 * scale)
+    assert np.abs(qd[[0, -1]]).max() <= 1e-6 * scale
+    inner = times[1:-1]
+    if inner.size:
+        left, right = traj.sample(inner - 1e-9), traj.sample(inner + 1e-9)
+        for a, b in zip(left, right):
+            assert np.abs(a - b).max() <= 1e-4 * scale * (1 + 1 / durations.min() ** 3)
+
+
+BAD_NUMBERS = st.sampled_from([float('nan'), float('inf'), -float('inf')])
+
+
+@given(BAD_NUMBERS, st.sampled_from(['q0', 'qf', 'duration', 'accel']))
+def test_non_finite_input_is_a_value_error(bad, which):
+    args = dict(q0=0.0, qf=1.0, duration=1.0, accel=10.0)
+    args[which] = bad
+    with pytest.raises(ValueError):
+        trajectory.lspb(**args)
+    if which != 'accel':
+        args.pop('accel')
+        with pytest.raises(ValueError):
+            trajectory.cubic(**args)
+        with pytest.raises(ValueError):
+            trajectory.quintic(**args)
+
+
+@pytest.mark.parametrize('bad_duration', [0.0, -1.0])
+def test_non_positive_duration_is_a_value_error(bad_duration):
+    for make in (trajectory.cubic, trajectory.quintic):
+        with pytest.raises(ValueError, match='duration'):
+            make(0.0, 1.0, bad_duration)
+
+
+def test_mismatched_joint_counts_are_a_value_error():
+    with pytest.raises(ValueError, match='joints'):
+        trajectory.cubic([0.0, 1.0], [1.0, 2.0, 3.0], 1.0)
+    with pytest.raises(ValueError, match='durations'):
+        trajectory.via_lspb([[0.0], [1.0], [2.0]], [1.0], 10.0)
+
+
+def test_lspb_that_does_not_move_stays_put():
+    seg = trajectory.lspb([1.0, 2.0], [1.0, 3.0], 2.0, 5.0)
+    q, qd, qdd = seg.sample(np.linspace(0, 2, 11))
+    assert np.all(q[:, 0] == 1.0) and np.all(qd[:, 0] == 0.0) and np.all(qdd[:, 0] == 0.0)
+
+
+def test_sample_shapes_and_holding_outside_the_trajectory():
+    seg = trajectory.cubic([0.0, 1.0, 2.0], [1.0, 2.0, 3.0], 2.0)
+    q, qd, qdd = seg.sample(np.linspace(-1.0, 3.0, 9))
+    assert q.shape == qd.shape == qdd.shape == (9, 3)
+    assert q[0] == pytest.approx([0.0, 1.0, 2.0]) and q[-1] == pytest.approx([1.0, 2.0, 3.0])
+    assert np.all(qd[[0, -1]] == 0.0)
+    assert seg.sample(0.5)[0].shape == (1, 3)
+
+
+def test_concatenate_composes_segments_and_refuses_a_gap():
+    a = trajectory.cubic(0.0, 1.0, 1.0)
+    b = trajectory.hold(1.0, 0.5)
+    c = trajectory.lspb(1.0, 0.0, 2.0, 4.0)
+    whole = trajectory.concatenate([a, b, c])
+    assert whole.duration == pytest.approx(3.5)
+    assert whole.sample([1.0, 1.25, 3.5])[0][:, 0] == pytest.approx([1.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match='does not start where'):
+        trajectory.concatenate([a, trajectory.cubic(2.0, 3.0, 1.0)])
