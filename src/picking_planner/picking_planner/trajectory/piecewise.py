@@ -49,7 +49,7 @@ class PiecewisePolynomial:
     rest, the way a controller holds its goal.
     """
 
-    __slots__ = ('_breaks', '_coeffs', '_end_state')
+    __slots__ = ('_breaks', '_coeffs', '_stacked', '_end_state')
 
     def __init__(self, breaks, coeffs):
         breaks = np.array(breaks, dtype=float)
@@ -72,6 +72,7 @@ class PiecewisePolynomial:
         padded.flags.writeable = False
         self._breaks = breaks
         self._coeffs = padded
+        self._stacked = _stack_derivatives(padded)
         self._end_state = None
 
     # -- shape and time -------------------------------------------------
@@ -120,28 +121,40 @@ class PiecewisePolynomial:
         -------
         q, qd, qdd : ndarray, each shape (N, n_joints)
             Position, velocity (per s) and acceleration (per s^2).
+
+        Notes
+        -----
+        Vectorised per segment, not per sample: the samples of each segment
+        are one matrix product of their power basis with the segment's
+        stacked (q, qd, qdd) coefficients. Sorted times are the fast path.
         """
         t = as_time_array(t)
-        breaks, coeffs = self._breaks, self._coeffs
-        before = t < breaks[0]
-        after = t > breaks[-1]
+        breaks = self._breaks
+        n = self.n_joints
         tc = np.clip(t, breaks[0], breaks[-1])
-        if coeffs.shape[0] == 1:
-            # One segment: a single matrix product with the power basis.
-            tau = tc - breaks[0]
-            q, qd, qdd = _eval_one(tau, coeffs[0])
+        rows = np.empty((3 * n, tc.size))
+        m = len(breaks) - 1
+        if m == 1:
+            _eval_block(tc - breaks[0], self._stacked[0], rows)
         else:
-            seg = np.searchsorted(breaks, tc, side='right') - 1
-            np.clip(seg, 0, coeffs.shape[0] - 1, out=seg)
-            tau = tc - breaks[seg]
-            q, qd, qdd = _eval_many(tau, coeffs[seg])
-        if before.any() or after.any():
-            q0, _, _ = self.start_state()
-            qf, _, _ = self.end_state()
-            q[before] = q0
-            q[after] = qf
-            qd[before | after] = 0.0
-            qdd[before | after] = 0.0
+            order = None
+            if tc.size > 1 and np.any(tc[1:] < tc[:-1]):
+                order = np.argsort(tc, kind='stable')
+                tc = tc[order]
+            edges = np.concatenate(([0], np.searchsorted(tc, breaks[1:-1], side='right'), [tc.size]))
+            for k in np.flatnonzero(edges[1:] > edges[:-1]):
+                lo, hi = edges[k], edges[k + 1]
+                _eval_block(tc[lo:hi] - breaks[k], self._stacked[k], rows[:, lo:hi])
+            if order is not None:
+                unsorted = np.empty_like(rows)
+                unsorted[:, order] = rows
+                rows = unsorted
+        out = rows.T
+        q, qd, qdd = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
+        outside = (t < breaks[0]) | (t > breaks[-1])
+        if outside.any():
+            qd[outside] = 0.0
+            qdd[outside] = 0.0
         return q, qd, qdd
 
     def start_state(self):
@@ -152,9 +165,10 @@ class PiecewisePolynomial:
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
-            tau = np.array([self._breaks[-1] - self._breaks[-2]])
-            q, qd, qdd = _eval_one(tau, self._coeffs[-1])
-            self._end_state = (q[0], qd[0], qdd[0])
+            rows = np.empty((3 * self.n_joints, 1))
+            _eval_block(np.array([self._breaks[-1] - self._breaks[-2]]), self._stacked[-1], rows)
+            q, qd, qdd = np.split(rows[:, 0], 3)
+            self._end_state = (q, qd, qdd)
         return tuple(x.copy() for x in self._end_state)
 
     # -- composition ------------------------------------------------------
@@ -171,29 +185,24 @@ class PiecewisePolynomial:
         return self._breaks[1:].copy()
 
 
-def _eval_one(tau, c):
-    """Evaluate one segment's polynomial at local times ``tau``: three GEMMs."""
-    powers = np.power.outer(tau, np.arange(_N_COEFFS, dtype=float))
-    q = powers @ c
-    qd = powers[:, :-1] @ (c[1:] * _D1[:, None])
-    qdd = powers[:, :-2] @ (c[2:] * _D2[:, None])
-    return q, qd, qdd
+def _stack_derivatives(coeffs):
+    """(m, 6, n) position coefficients -> (m, 6, 3n) for q, qd and qdd side by side."""
+    m, _, n = coeffs.shape
+    out = np.zeros((m, _N_COEFFS, 3 * n))
+    out[:, :, :n] = coeffs
+    out[:, :-1, n:2 * n] = coeffs[:, 1:] * _D1[None, :, None]
+    out[:, :-2, 2 * n:] = coeffs[:, 2:] * _D2[None, :, None]
+    return out
 
 
-def _eval_many(tau, c):
-    """Horner's rule with a different segment per sample; ``c`` is (N, 6, n)."""
-    tau = tau[:, None]
-    q = c[:, 5] * tau + c[:, 4]
-    qd = 5.0 * c[:, 5] * tau + 4.0 * c[:, 4]
-    qdd = 20.0 * c[:, 5] * tau + 12.0 * c[:, 4]
-    for i in (3, 2):
-        q = q * tau + c[:, i]
-        qd = qd * tau + i * c[:, i]
-    qdd = qdd * tau + 6.0 * c[:, 3]
-    qdd = qdd * tau + 2.0 * c[:, 2]
-    q = (q * tau + c[:, 1]) * tau + c[:, 0]
-    qd = qd * tau + c[:, 1]
-    return q, qd, qdd
+def _eval_block(tau, stacked, out):
+    """Write q, qd, qdd rows for local times ``tau`` into ``out`` (3n, len(tau))."""
+    powers = np.empty((_N_COEFFS, tau.size))
+    powers[0] = 1.0
+    powers[1] = tau
+    for i in range(2, _N_COEFFS):
+        np.multiply(powers[i - 1], tau, out=powers[i])
+    np.matmul(stacked.T, powers, out=out)
 
 
 def taylor_shift(coeffs, dt):

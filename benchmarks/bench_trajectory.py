@@ -1,0 +1,66 @@
+"""Sampling 100 000 time steps x 6 joints: our profiles against roboticstoolbox-python."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness import fmt_time, median, p99, time_calls
+from picking_planner import trajectory
+
+N_STEPS = 100_000
+N_JOINTS = 6
+
+
+def _peer():
+    try:
+        import roboticstoolbox as rtb
+    except ImportError:
+        return None
+    return rtb
+
+
+def cases():
+    """(name, ours, peer name, peer or None) with identical inputs."""
+    rng = np.random.default_rng(7)
+    q0 = rng.uniform(-1.0, 1.0, N_JOINTS)
+    qf = rng.uniform(-1.0, 1.0, N_JOINTS)
+    tf = 3.0
+    t = np.linspace(0.0, tf, N_STEPS)
+    accel = 1.5 * trajectory.min_lspb_accel(q0, qf, tf).max()
+    vias = rng.uniform(-1.0, 1.0, (6, N_JOINTS))
+    durations = np.full(5, 2.0)
+    t_via = np.linspace(0.0, durations.sum(), N_STEPS)
+    rtb = _peer()
+
+    out = [
+        ('cubic', lambda: trajectory.cubic(q0, qf, tf).sample(t), None, None),
+        ('quintic', lambda: trajectory.quintic(q0, qf, tf).sample(t),
+         'jtraj', (lambda: rtb.jtraj(q0, qf, t)) if rtb else None),
+        ('lspb', lambda: trajectory.lspb(q0, qf, tf, accel).sample(t),
+         'mtraj(trapezoidal)', (lambda: rtb.mtraj(rtb.trapezoidal, q0, qf, t)) if rtb else None),
+        ('via_lspb', lambda: trajectory.via_lspb(vias, durations, 40.0).sample(t_via),
+         'mstraj', (lambda: rtb.mstraj(vias, dt=durations.sum() / N_STEPS, tacc=0.2,
+                                       tsegment=durations)) if rtb else None),
+        ('quintic_via', lambda: trajectory.quintic_via(vias, durations).sample(t_via), None, None),
+    ]
+    return out
+
+
+def run(repeats=15):
+    """Rows: method, our median, p99, peer, peer median, speed-up."""
+    rows = []
+    for name, ours, peer_name, peer in cases():
+        fns = {'ours': ours}
+        if peer is not None:
+            fns['peer'] = peer
+        times = time_calls(fns, repeats=repeats)
+        row = [f'sample {name} ({N_STEPS:,} x {N_JOINTS})', fmt_time(median(times['ours'])),
+               fmt_time(p99(times['ours']))]
+        if peer is not None:
+            ratio = median(times['peer']) / median(times['ours'])
+            row += [f'rtb {peer_name}', fmt_time(median(times['peer'])), f'{ratio:.1f}x']
+        else:
+            row += [f'rtb {peer_name}: not installed' if peer_name else '—', '—', '—']
+        rows.append(row)
+        print('  ' + ' | '.join(row), flush=True)
+    return rows
