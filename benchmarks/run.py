@@ -12,6 +12,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import bench_ik  # noqa: E402
 import bench_trajectory  # noqa: E402
 from harness import machine, table  # noqa: E402
 
@@ -28,6 +29,8 @@ def main(argv=None):
     rows = []
     print('trajectory sampling:')
     rows += bench_trajectory.run(repeats)
+    print('inverse kinematics:')
+    rows += bench_ik.run(repeats)
     text = table(rows, HEADER)
     print()
     print(text)

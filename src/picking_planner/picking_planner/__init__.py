@@ -4,6 +4,6 @@ The core modules ``trajectory``, ``geometry`` and ``kinematics`` import only
 numpy and scipy; the ROS node lives in ``picking_planner.node``.
 """
 
-from . import geometry, trajectory
+from . import geometry, kinematics, trajectory
 
-__all__ = ['geometry', 'trajectory']
+__all__ = ['geometry', 'kinematics', 'trajectory']

@@ -95,3 +95,24 @@ def plot_loglog(path, x, y, xlabel, ylabel, title):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+def plot_workspace(path, tool, arm):
+    """Tool positions reached within the joint limits: side (r, z) and top (x, y) views."""
+    plt = _pyplot()
+    fig, (side, top) = plt.subplots(1, 2, figsize=(11, 5))
+    r = np.hypot(tool[:, 0], tool[:, 1]) * np.sign(tool[:, 0] + 1e-12)
+    side.scatter(r, tool[:, 2], s=1, alpha=0.25)
+    side.set_xlabel('signed radial distance from the waist axis [m]')
+    side.set_ylabel('z [m]')
+    side.set_title(f'{arm.name}: side view')
+    top.scatter(tool[:, 0], tool[:, 1], s=1, alpha=0.25)
+    top.set_xlabel('x [m]'), top.set_ylabel('y [m]'), top.set_title('top view')
+    for ax in (side, top):
+        ax.set_aspect('equal')
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(f'Reachable tool positions within the joint limits ({len(tool):,} random configurations)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)

@@ -8,6 +8,7 @@ No ROS graph is needed. Examples::
     picking-plan quintic-via --points 0,0 1,0.5 0,1 --durations 2
     picking-plan arc --p1 10 3 4 --p2 11 3 5 --p3 10 3 6 --n 45
     picking-plan --paper --out out/paper
+    picking-plan workspace --urdf config/picking_arm.urdf
 
 A via point with several joints is written ``q1,q2,...``. With ``--deg`` the
 joint values given are degrees and the CSV and plots are in degrees too;
@@ -206,7 +207,31 @@ def build_parser():
     p.add_argument('--n', type=int, default=45, help='insertion points between p1 and p3')
     p.add_argument('--duration', type=float, default=2.0, help='traversal time, s')
     p.add_argument('--profile', choices=geometry.PROFILES, default='quintic')
+    p = sub.add_parser('workspace', help="plot the arm's reachable workspace (reach shell and limits)")
+    p.add_argument('--urdf', type=Path, default=_default_urdf(), help='arm model (default %(default)s)')
+    p.add_argument('--samples', type=int, default=20000, help='random configurations within the limits')
     return parser
+
+
+def _default_urdf():
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        if (parent / 'config' / 'picking_arm.urdf').exists():
+            return parent / 'config' / 'picking_arm.urdf'
+    return Path('config/picking_arm.urdf')
+
+
+def save_workspace(urdf, samples, out):
+    """Side and top views of tool positions over random joint values within the limits."""
+    from ..kinematics import ArmModel
+    from ..plots import plot_workspace
+    arm = ArmModel.from_urdf(urdf)
+    rng = np.random.default_rng(0)
+    lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
+    hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
+    tool = arm.fk(rng.uniform(lo, hi, (samples, arm.dof)))[:, :3, 3]
+    png = plot_workspace(out / 'workspace.png', tool, arm)
+    return arm, tool, [png]
 
 
 def plan_from_args(args):
@@ -237,6 +262,11 @@ def main(argv=None):
             lines, files = run_paper(args.out, args.dt)
             print('The paper, reproduced (formulas win where its printed numbers differ):')
             print('\n'.join('  ' + line for line in lines))
+        elif args.method == 'workspace':
+            arm, tool, files = save_workspace(args.urdf, args.samples, args.out)
+            radial = np.linalg.norm(tool, axis=1)
+            print(f'{arm}: tool within {radial.max():.3f} m of base_link; wrist-centre reach shell '
+                  f'{arm.reach[0]:.3f}-{arm.reach[1]:.3f} m about the shoulder')
         elif args.method == 'arc':
             arc = geometry.Arc.through(args.p1, args.p2, args.p3)
             path = geometry.CartesianPath.timed(arc, args.duration, args.profile)

@@ -1,0 +1,146 @@
+"""Cartesian path -> joint path: IK at every sample, seeded by the previous one.
+
+The path is refused, with where and why, when a sample is unreachable, when it
+passes a singularity, or when consecutive samples need a joint jump larger
+than a threshold (MoveIt's jump-threshold idea: an IK branch flip). The result
+reports the largest deviation of the tool from the requested path between the
+samples, and its joint velocities and accelerations against the limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .. import trajectory
+from .errors import Unreachable
+
+
+def pose_matrix(position, quaternion=(0.0, 0.0, 0.0, 1.0)):
+    """4x4 pose from a position (m) and a quaternion (x, y, z, w), normalised.
+
+    Raises ValueError for non-finite values or a zero quaternion.
+    """
+    p = np.asarray(position, dtype=float)
+    qt = np.asarray(quaternion, dtype=float)
+    if p.shape != (3,) or qt.shape != (4,) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(qt))):
+        raise ValueError('a pose needs a finite position (x, y, z) and quaternion (x, y, z, w)')
+    norm = np.linalg.norm(qt)
+    if norm < 1e-9:
+        raise ValueError('the orientation quaternion is zero; it must be a unit quaternion (x, y, z, w)')
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(qt / norm).as_matrix()
+    T[:3, 3] = p
+    return T
+
+
+@dataclass(frozen=True)
+class JointPath:
+    """A Cartesian path converted to joints.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Sample times, s.
+    q : ndarray, shape (N, dof)
+        IK solution at each sample.
+    trajectory : PiecewisePolynomial
+        C2 quintic spline through the samples (what the controller runs).
+    max_deviation : float
+        Largest distance between the tool (by FK of the trajectory, between
+        samples) and the requested path, m.
+    peak_velocity, peak_acceleration : ndarray, shape (dof,)
+        Largest |qd| and |qdd| along the trajectory.
+    min_singular_value : float
+        Smallest singular value of the Jacobian met along the path.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    trajectory: trajectory.PiecewisePolynomial
+    max_deviation: float
+    peak_velocity: np.ndarray
+    peak_acceleration: np.ndarray
+    min_singular_value: float
+
+
+def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_threshold=1e-3,
+                       check_limits=True):
+    """Joint trajectory that moves the tool along ``path``.
+
+    Parameters
+    ----------
+    arm : ArmModel
+    path : CartesianPath
+        Positions in the base frame; orientations (if set) followed too.
+    seed : array_like, shape (dof,)
+        Joints at the start (the current state); the first sample's IK is seeded by it.
+    dt : float
+        Sample period, s.
+    max_joint_step : float
+        Largest change of any joint between two samples, rad (m), before the
+        path is refused as a jump.
+    singular_threshold : float
+        Smallest accepted singular value of the Jacobian.
+    check_limits : bool
+        Refuse paths whose joint velocity or acceleration breaks the arm's limits.
+
+    Raises
+    ------
+    Unreachable
+        Naming the time and tool position where the path fails, and why.
+    """
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f'dt must be a positive number of seconds, got {dt}')
+    n = max(int(np.ceil(path.duration / dt - 1e-9)), 1) + 1
+    t = np.linspace(0.0, path.duration, n)
+    poses = path.poses(t)
+    if path.orientations(t[:1]) is None:
+        poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
+    q = np.empty((n, arm.dof))
+    prev = arm.check_joints(seed, 'seed')
+    for i in range(n):
+        sol, ok, reasons = arm.ik_batch(poses[i:i + 1], prev)
+        where = f'at t = {t[i]:.3f} s (tool at {np.round(poses[i, :3, 3], 4).tolist()} m)'
+        if not ok[0]:
+            raise Unreachable(f'path fails {where}: {reasons[0]}')
+        step = np.abs(sol[0] - prev)
+        if i > 0 and step.max() > max_joint_step:
+            j = int(step.argmax())
+            raise Unreachable(f'path fails {where}: joint {arm.joint_names[j]} would jump '
+                              f'{step[j]:.3f} rad in one sample (threshold {max_joint_step} rad); '
+                              'the path passes near a singularity or changes IK branch')
+        q[i] = prev = sol[0]
+    sigma = arm.min_singular_values(q)
+    worst = int(np.argmin(sigma))
+    if sigma[worst] < singular_threshold:
+        raise Unreachable(f'path fails at t = {t[worst]:.3f} s (tool at '
+                          f'{np.round(poses[worst, :3, 3], 4).tolist()} m): singular: the Jacobian\'s '
+                          f'smallest singular value is {sigma[worst]:.2e} (threshold {singular_threshold})')
+    traj = trajectory.quintic_via(q, np.diff(t)) if n > 2 else trajectory.quintic(q[0], q[-1], path.duration)
+    # Deviation between samples, where the spline is not pinned by IK.
+    t_mid = np.sort(np.concatenate([t, 0.5 * (t[1:] + t[:-1]), 0.25 * t[1:] + 0.75 * t[:-1]]))
+    q_mid, qd, qdd = traj.sample(t_mid)
+    tool = arm.fk(q_mid)[:, :3, 3]
+    deviation = float(np.linalg.norm(tool - path.sample(t_mid)[0], axis=1).max())
+    peak_v, peak_a = np.abs(qd).max(axis=0), np.abs(qdd).max(axis=0)
+    if check_limits:
+        check_joint_limits(arm, t_mid, q_mid, qd, qdd)
+    return JointPath(t, q, traj, deviation, peak_v, peak_a, float(sigma[worst]))
+
+
+def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6):
+    """Raise Unreachable naming the first joint and time that break a position,
+    velocity or acceleration limit of ``arm``."""
+    for name, values, lo, hi, unit in (
+            ('position', q, arm.lower, arm.upper, 'rad'),
+            ('velocity', qd, -arm.max_velocity, arm.max_velocity, 'rad/s'),
+            ('acceleration', qdd, -arm.max_acceleration, arm.max_acceleration, 'rad/s^2')):
+        bad = (values < lo - slack) | (values > hi + slack)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            limit = hi[j] if values[i, j] > hi[j] else lo[j]
+            raise Unreachable(f'{name} limit broken: {arm.joint_names[j]} reaches {values[i, j]:.4g} {unit} '
+                              f'at t = {t[i]:.3f} s, limit {limit:.4g} {unit}; slow the motion down')

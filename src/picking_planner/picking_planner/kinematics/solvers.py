@@ -1,0 +1,297 @@
+"""Inverse kinematics solvers: closed form for the shipped geometries, DLS for any chain.
+
+The closed forms cover the arm family of ``config/``: a waist joint about z, a
+shoulder and an elbow about y (the paper's three joints), and -- for six joints
+-- a spherical wrist about z, y, z whose axes meet at the wrist centre. The
+geometry (shoulder height, upper-arm and forearm lengths, tool offset) is read
+from the URDF, so any arm of that shape gets the closed form; every other chain
+gets damped least squares with joint limits and restarts.
+
+All closed-form work is vectorised over poses and branches; a solution is only
+returned after forward kinematics confirms it (1e-9 m, 1e-9 rad).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+_Z = np.array([0.0, 0.0, 1.0])
+_Y = np.array([0.0, 1.0, 0.0])
+_TOL = 1e-9          # geometry detection and FK confirmation
+_SINGULAR = 1e-9     # |sin q5| below which the wrist is singular
+
+
+def pick_solver(arm):
+    """The fastest solver that fits the arm's geometry."""
+    for cls in (SphericalWrist6R, Elbow3R):
+        solver = cls.fit(arm)
+        if solver is not None:
+            return solver
+    return NumericSolver(arm)
+
+
+def _is(v, ref):
+    return np.allclose(v, ref, atol=_TOL)
+
+
+def _pure_z_offset(T):
+    """The z offset if T is a pure translation along z, else None."""
+    if _is(T[:3, :3], np.eye(3)) and abs(T[0, 3]) < _TOL and abs(T[1, 3]) < _TOL:
+        return float(T[2, 3])
+    return None
+
+
+def _wrap_into_limits(q, seed, lower, upper, revolute):
+    """Shift revolute joints by multiples of 2 pi into the limits, nearest the seed.
+
+    q : (N, B, dof), seed : (N, dof). Returns the shifted q and a (N, B) validity mask.
+    """
+    s = seed[:, None, :]
+    best = q + TWO_PI * np.round((s - q) / TWO_PI) * revolute          # nearest the seed
+    ok = (best >= lower - _TOL) & (best <= upper + _TOL)
+    if not ok.all():
+        toward = np.where(s >= best, TWO_PI, -TWO_PI) * revolute
+        for alt in (best + toward, best - toward):                     # next nearest first
+            alt_ok = (alt >= lower - _TOL) & (alt <= upper + _TOL)
+            best = np.where(~ok & alt_ok, alt, best)
+            ok |= alt_ok
+    return best, ok.all(axis=-1)
+
+
+class _ClosedForm:
+    """Shared shape of the closed-form solvers."""
+
+    name = ''
+    position_only = False
+
+    def __init__(self, arm, base, d_shoulder, l2, l3):
+        self.arm = arm
+        self.shoulder = base + np.array([0.0, 0.0, d_shoulder])
+        self.l2, self.l3 = l2, l3
+        self.reach = (abs(l2 - l3), l2 + l3)
+        self.revolute = np.array([t != 'prismatic' for t in arm.joint_types], dtype=float)
+
+    # Position part: waist, shoulder and elbow for wrist-centre targets W (N, 3),
+    # four branches (front/back x elbow up/down). Returns (N, 4, 3) and reach mask (N,).
+    def _arm_branches(self, W, seed):
+        p = W - self.shoulder
+        x, y, z = p[:, 0], p[:, 1], p[:, 2]
+        rho = np.hypot(x, y)
+        on_axis = rho < _TOL
+        q1a = np.where(on_axis, seed[:, 0], np.arctan2(y, x))
+        q1 = np.stack([q1a, q1a, q1a + np.pi, q1a + np.pi], axis=1)
+        r = np.stack([rho, rho, -rho, -rho], axis=1)
+        l2, l3 = self.l2, self.l3
+        D = (rho**2 + z**2 - l2**2 - l3**2) / (2.0 * l2 * l3)
+        reach_ok = np.abs(D) <= 1.0 + 1e-12
+        q3p = np.arccos(np.clip(D, -1.0, 1.0))
+        q3 = np.stack([q3p, -q3p, q3p, -q3p], axis=1)
+        q2 = np.arctan2(r, z[:, None]) - np.arctan2(l3 * np.sin(q3), l2 + l3 * np.cos(q3))
+        return np.stack([q1, q2, q3], axis=2), reach_ok
+
+    def _reach_reason(self, W):
+        d = float(np.linalg.norm(W - self.shoulder))
+        lo, hi = self.reach
+        what = 'wrist centre' if not self.position_only else 'tool point'
+        if d > hi:
+            return f'out of reach: the {what} would be {d:.3f} m from the shoulder, the arm reaches {hi:.3f} m'
+        if d < lo:
+            return f'out of reach: the {what} would be {d:.3f} m from the shoulder, closer than {lo:.3f} m'
+        return ''
+
+    def quick_reject(self, T):
+        return self._reach_reason(self._targets(T[None])[0])
+
+    def solve(self, T, seed):
+        W = self._targets(T)
+        cand, reach_ok = self.candidates(T, seed)                     # (N, B, dof)
+        cand, in_limits = _wrap_into_limits(cand, seed, self.arm.lower, self.arm.upper, self.revolute)
+        valid = in_limits & reach_ok[:, None] & np.all(np.isfinite(cand), axis=-1)
+        dist = np.where(valid, np.sum((cand - seed[:, None, :]) ** 2, axis=-1), np.inf)
+        best = np.argmin(dist, axis=1)
+        q = cand[np.arange(len(T)), best]
+        ok = valid[np.arange(len(T)), best]
+        if ok.any():
+            ok[ok] &= self._confirm(q[ok], T[ok])
+        q[~ok] = np.nan
+        reasons = [''] * len(T)
+        for i in np.flatnonzero(~ok):
+            reasons[i] = (self._reach_reason(W[i]) or
+                          'beyond joint limits: every IK solution puts a joint outside its limits')
+        return q, ok, reasons
+
+    def all_solutions(self, T):
+        seed = np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof))
+        cand, reach_ok = self.candidates(T, seed)
+        return [c if r else c[:0] for c, r in zip(cand, reach_ok)]
+
+    def _confirm(self, q, T):
+        F = self.arm.joint_frames(q)[:, -1]
+        pos_err = np.linalg.norm(F[:, :3, 3] - T[:, :3, 3], axis=1)
+        if self.position_only:
+            return pos_err < 1e-7
+        rot_err = np.linalg.norm(F[:, :3, :3] - T[:, :3, :3], axis=(1, 2))   # ~ sqrt(2) * angle
+        return (pos_err < 1e-7) & (rot_err < 1e-7)
+
+
+class Elbow3R(_ClosedForm):
+    """The paper's three joints (waist z, shoulder y, elbow y): position-only IK, 4 solutions."""
+
+    name = 'elbow_3r'
+    position_only = True
+
+    @classmethod
+    def fit(cls, arm):
+        if arm.dof != 3 or any(t == 'prismatic' for t in arm.joint_types):
+            return None
+        ax, o = arm._axes, arm._origins
+        if not (_is(ax[0], _Z) and _is(ax[1], _Y) and _is(ax[2], _Y) and _is(o[0][:3, :3], np.eye(3))):
+            return None
+        d, l2, l3 = _pure_z_offset(o[1]), _pure_z_offset(o[2]), _pure_z_offset(arm._tool)
+        if d is None or l2 is None or l3 is None or l2 <= 0 or l3 <= 0:
+            return None
+        return cls(arm, o[0][:3, 3], d, l2, l3)
+
+    def _targets(self, T):
+        return T[:, :3, 3]
+
+    def candidates(self, T, seed):
+        return self._arm_branches(self._targets(T), seed)
+
+
+class SphericalWrist6R(_ClosedForm):
+    """Waist z, shoulder y, elbow y, wrist z-y-z meeting at one point: up to 8 solutions."""
+
+    name = 'spherical_wrist'
+
+    @classmethod
+    def fit(cls, arm):
+        if arm.dof != 6 or any(t == 'prismatic' for t in arm.joint_types):
+            return None
+        ax, o = arm._axes, arm._origins
+        if not all(_is(a, ref) for a, ref in zip(ax, (_Z, _Y, _Y, _Z, _Y, _Z))):
+            return None
+        if not _is(o[0][:3, :3], np.eye(3)):
+            return None
+        d, l2, l3 = _pure_z_offset(o[1]), _pure_z_offset(o[2]), _pure_z_offset(o[3])
+        if None in (d, l2, l3) or l2 <= 0 or l3 <= 0:
+            return None
+        if not (_is(o[4], np.eye(4)) and _is(o[5], np.eye(4))):
+            return None
+        solver = cls(arm, o[0][:3, 3], d, l2, l3)
+        solver.tool_inv = np.linalg.inv(arm._tool)
+        return solver
+
+    def _targets(self, T):
+        return (T @ self.tool_inv)[:, :3, 3]
+
+    def candidates(self, T, seed):
+        flange = T @ self.tool_inv
+        arm_q, reach_ok = self._arm_branches(flange[:, :3, 3], seed)   # (N, 4, 3)
+        q1, q23 = arm_q[..., 0], arm_q[..., 1] + arm_q[..., 2]
+        c1, s1, c23, s23 = np.cos(q1), np.sin(q1), np.cos(q23), np.sin(q23)
+        # R03 = Rz(q1) Ry(q2 + q3); R36 = R03^T R06 = Rz(q4) Ry(q5) Rz(q6).
+        R03 = np.empty(q1.shape + (3, 3))
+        R03[..., 0, 0], R03[..., 0, 1], R03[..., 0, 2] = c1 * c23, -s1, c1 * s23
+        R03[..., 1, 0], R03[..., 1, 1], R03[..., 1, 2] = s1 * c23, c1, s1 * s23
+        R03[..., 2, 0], R03[..., 2, 1], R03[..., 2, 2] = -s23, 0.0, c23
+        R = np.swapaxes(R03, -1, -2) @ flange[:, None, :3, :3]       # (N, 4, 3, 3)
+        s5 = np.hypot(R[..., 0, 2], R[..., 1, 2])
+        q5 = np.arctan2(s5, R[..., 2, 2])
+        q4 = np.arctan2(R[..., 1, 2], R[..., 0, 2])
+        q6 = np.arctan2(R[..., 2, 1], -R[..., 2, 0])
+        singular = s5 < _SINGULAR
+        if singular.any():
+            # Only q4 + q6 (or q4 - q6 when q5 = pi) is defined: keep q4 at the seed.
+            q4s = np.broadcast_to(seed[:, None, 3], q4.shape)
+            phi = np.where(R[..., 2, 2] > 0, np.arctan2(R[..., 1, 0], R[..., 0, 0]),
+                           np.arctan2(-R[..., 0, 1], R[..., 1, 1]))
+            q6s = np.where(R[..., 2, 2] > 0, phi - q4s, q4s - phi)
+            q4 = np.where(singular, q4s, q4)
+            q6 = np.where(singular, q6s, q6)
+        wrist_a = np.stack([q4, q5, q6], axis=-1)
+        wrist_b = np.stack([q4 + np.pi, -q5, q6 + np.pi], axis=-1)
+        a = np.concatenate([arm_q, wrist_a], axis=-1)
+        b = np.concatenate([arm_q, wrist_b], axis=-1)
+        return np.concatenate([a, b], axis=1), reach_ok                # (N, 8, 6)
+
+
+class NumericSolver:
+    """Damped least squares with joint limits and restarts, for any serial chain.
+
+    Arms with fewer than six joints solve the tool position only.
+    """
+
+    name = 'numeric'
+
+    def __init__(self, arm, restarts=8, iterations=200, damping=1e-3, seed=0):
+        self.arm = arm
+        self.position_only = arm.dof < 6
+        self.restarts, self.iterations, self.damping = restarts, iterations, damping
+        self.rng = np.random.default_rng(seed)
+        origins = arm.joint_frames(np.zeros((1, arm.dof)))[0]
+        hops = np.linalg.norm(np.diff(origins[:, :3, 3], axis=0), axis=1)
+        prismatic_travel = np.where(arm._prismatic, np.abs(np.nan_to_num(arm.upper, posinf=0.0)), 0.0)
+        self.base_point = origins[0, :3, 3]
+        self.reach = (0.0, float(hops.sum() + prismatic_travel.sum()))
+
+    def quick_reject(self, T):
+        d = float(np.linalg.norm(T[:3, 3] - self.base_point))
+        if d > self.reach[1] + 1e-9:
+            return (f'out of reach: the tool would be {d:.3f} m from the first joint, '
+                    f'the chain is {self.reach[1]:.3f} m long')
+        return ''
+
+    def all_solutions(self, T):
+        q, ok, _ = self.solve(T, np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof)))
+        return [q[i:i + 1] if ok[i] else q[i:i] for i in range(len(T))]
+
+    def _error(self, q, T):
+        F = self.arm.joint_frames(q[None])[0, -1]
+        e_pos = T[:3, 3] - F[:3, 3]
+        if self.position_only:
+            return e_pos
+        from scipy.spatial.transform import Rotation
+        e_rot = Rotation.from_matrix(T[:3, :3] @ F[:3, :3].T).as_rotvec()
+        return np.concatenate([e_pos, e_rot])
+
+    def _solve_one(self, T, seed):
+        arm = self.arm
+        lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
+        hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
+        starts = [np.clip(seed, lo, hi)] + [self.rng.uniform(lo, hi) for _ in range(self.restarts)]
+        rows = slice(0, 3) if self.position_only else slice(0, 6)
+        best = None
+        for q in starts:
+            for _ in range(self.iterations):
+                e = self._error(q, T)
+                err = np.linalg.norm(e)
+                if err < 1e-10:
+                    return q, ''
+                J = arm.jacobian(q)[rows]
+                lam2 = (self.damping * min(1.0, err)) ** 2     # damp far away, Gauss-Newton near
+                dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(J.shape[0]), e)
+                q = np.clip(q + dq, lo, hi)
+            err = np.linalg.norm(self._error(q, T))
+            if best is None or err < best[1]:
+                best = (q, err)
+        _, s, _ = np.linalg.svd(arm.jacobian(best[0])[rows])
+        if s[-1] < 1e-6:
+            return None, 'singular: the numeric IK stalls at a singular configuration'
+        return None, (f'beyond joint limits or out of reach: no solution within the limits found '
+                      f'({self.restarts + 1} starts, residual {best[1]:.2e})')
+
+    def solve(self, T, seed):
+        n = len(T)
+        q = np.full((n, self.arm.dof), np.nan)
+        ok = np.zeros(n, bool)
+        reasons = [''] * n
+        for i in range(n):
+            reason = self.quick_reject(T[i])
+            if not reason:
+                sol, reason = self._solve_one(T[i], seed[i])
+                if sol is not None:
+                    q[i], ok[i] = sol, True
+            reasons[i] = reason
+        return q, ok, reasons

@@ -1,0 +1,174 @@
+"""Arm model, forward and inverse kinematics (Sec. 2.2, Eq. 1-2) and the reachability check (Sec. 3.1 C)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from picking_planner import geometry, kinematics
+from picking_planner.kinematics import Unreachable, pose_matrix
+
+SHOULDER = 0.35
+UPPER, FORE, TOOL = 0.45, 0.40, 0.15
+
+
+def test_urdf_chain_limits_and_solver(arm):
+    assert arm.joint_names == ('shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint',
+                               'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint')
+    assert arm.solver == 'spherical_wrist'
+    assert arm.upper[2] == pytest.approx(2.6) and arm.max_velocity[0] == pytest.approx(2.0)
+    assert arm.max_acceleration[2] == pytest.approx(8.0)          # from the joint-limits YAML
+    assert arm.max_jerk[5] == pytest.approx(120.0)
+    assert arm.base_frame == 'base_link' and arm.tool_frame == 'tool0'
+
+
+@pytest.mark.parametrize('q, position, rotation', [
+    ([0, 0, 0, 0, 0, 0], [0, 0, SHOULDER + UPPER + FORE + TOOL], np.eye(3)),
+    ([0, np.pi / 2, 0, 0, 0, 0], [UPPER + FORE + TOOL, 0, SHOULDER],
+     Rotation.from_euler('y', 90, degrees=True).as_matrix()),
+    ([np.pi / 2, np.pi / 2, 0, 0, 0, 0], [0, UPPER + FORE + TOOL, SHOULDER],
+     Rotation.from_euler('ZY', [90, 90], degrees=True).as_matrix()),
+    ([0, 0, np.pi / 2, 0, 0, 0], [FORE + TOOL, 0, SHOULDER + UPPER],
+     Rotation.from_euler('y', 90, degrees=True).as_matrix()),
+    ([0, 0, np.pi / 2, 0, -np.pi / 2, 0], [FORE, 0, SHOULDER + UPPER + TOOL], np.eye(3)),
+])
+def test_fk_against_poses_worked_out_by_hand(arm, q, position, rotation):
+    T = arm.fk(q)
+    assert T[:3, 3] == pytest.approx(position, abs=1e-12)
+    assert T[:3, :3] == pytest.approx(rotation, abs=1e-12)
+
+
+def test_fk_is_batched(arm):
+    Q = np.random.default_rng(1).uniform(arm.lower, arm.upper, (50, 6))
+    batched = arm.fk(Q)
+    assert batched.shape == (50, 4, 4)
+    assert batched[17] == pytest.approx(arm.fk(Q[17]))
+
+
+def test_ik_of_fk_for_10000_random_configurations(arm):
+    rng = np.random.default_rng(2026)
+    Q = rng.uniform(arm.lower, arm.upper, (10_000, 6))
+    T = arm.fk(Q)
+    seeds = np.clip(Q + rng.normal(0.0, 0.05, Q.shape), arm.lower, arm.upper)
+    q, ok, reasons = arm.ik_batch(T, seeds)
+    assert ok.mean() >= 0.999, set(reasons)
+    assert np.all(arm.within_limits(q[ok]))
+    F = arm.fk(q[ok])
+    assert np.abs(F[:, :3, 3] - T[ok, :3, 3]).max() <= 1e-6
+    angle = Rotation.from_matrix(np.swapaxes(F[:, :3, :3], 1, 2) @ T[ok, :3, :3]).magnitude()
+    assert angle.max() <= 1e-6
+    # The seed picks the nearest valid solution: never farther than the configuration
+    # that made the pose, and that configuration itself when it is the seed.
+    nearest = np.sum((q[ok] - seeds[ok]) ** 2, axis=1)
+    assert np.all(nearest <= np.sum((Q[ok] - seeds[ok]) ** 2, axis=1) + 1e-9)
+    q_exact, ok_exact, _ = arm.ik_batch(T, Q)
+    assert ok_exact.mean() >= 0.999
+    assert np.abs(q_exact[ok_exact] - Q[ok_exact]).max() < 1e-6
+
+
+def test_ik_returns_the_valid_solution_nearest_the_seed(arm):
+    q_true = np.array([0.4, 0.3, 1.1, 0.5, 0.8, -0.6])
+    T = arm.fk(q_true)
+    solutions = arm.ik_all(T)
+    assert len(solutions) == 8
+    valid = [s for s in solutions if arm.within_limits(s)]
+    for s in valid:
+        assert arm.fk(s) == pytest.approx(T, abs=1e-9) or not arm.within_limits(s)
+    for s in valid:
+        # Seeded at any valid solution, IK gives that solution back.
+        assert arm.ik(T, seed=s) == pytest.approx(s, abs=1e-9)
+
+
+def test_out_of_reach_is_refused_with_the_distance(arm):
+    T = pose_matrix([2.0, 0.0, 0.5])
+    with pytest.raises(Unreachable, match='out of reach.*m from the shoulder'):
+        arm.ik(T)
+    with pytest.raises(Unreachable, match='out of reach'):
+        arm.check_reachable(T)
+
+
+def test_beyond_joint_limits_is_refused(arm):
+    # The elbow folded to 2.9 rad (limit 2.6): every branch needs |q3| = 2.9.
+    T = arm.fk([0.0, 0.0, 2.9, 0.0, 0.0, 0.0])
+    with pytest.raises(Unreachable, match='beyond joint limits'):
+        arm.ik(T)
+
+
+@pytest.mark.parametrize('bad', [
+    np.full((4, 4), np.nan), np.eye(3), np.diag([1.0, 1.0, -1.0, 1.0]),
+])
+def test_malformed_or_non_finite_poses_are_value_errors(arm, bad):
+    with pytest.raises(ValueError) as info:
+        arm.ik(bad)
+    assert not isinstance(info.value, Unreachable)
+
+
+def test_pose_matrix_refuses_zero_quaternion():
+    with pytest.raises(ValueError, match='quaternion is zero'):
+        pose_matrix([0.5, 0, 0.5], [0, 0, 0, 0])
+
+
+def test_check_reachable_returns_the_solution(arm):
+    q = np.array([0.2, 0.5, 1.0, 0.0, 0.6, 0.0])
+    assert arm.check_reachable(arm.fk(q), seed=q) == pytest.approx(q)
+
+
+def test_three_joint_arm_solves_position_only(arm3):
+    assert arm3.solver == 'elbow_3r' and arm3.dof == 3
+    rng = np.random.default_rng(3)
+    Q = rng.uniform(arm3.lower, arm3.upper, (2000, 3))
+    T = arm3.fk(Q)
+    T[:, :3, :3] = np.eye(3)                                  # orientation is ignored
+    q, ok, _ = arm3.ik_batch(T, Q)
+    assert ok.mean() >= 0.999
+    assert np.abs(arm3.fk(q[ok])[:, :3, 3] - T[ok, :3, 3]).max() < 1e-9
+    assert np.abs(q[ok] - Q[ok]).max() < 1e-6
+
+
+def test_any_other_chain_gets_the_numeric_solver():
+    urdf = (kinematics.ArmModel.from_urdf.__globals__['Path'](__file__).resolve().parents[3]
+            / 'config' / 'picking_arm.urdf').read_text()
+    # A 10 cm shoulder offset breaks the closed form's assumptions.
+    urdf = urdf.replace('<origin xyz="0 0 0.45" rpy="0 0 0"/>', '<origin xyz="0 0.1 0.45" rpy="0 0 0"/>')
+    arm = kinematics.ArmModel.from_urdf_string(urdf)
+    assert arm.solver == 'numeric'
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        q_true = rng.uniform(arm.lower * 0.5, arm.upper * 0.5)
+        T = arm.fk(q_true)
+        q = arm.ik(T, seed=np.clip(q_true + 0.1, arm.lower, arm.upper))
+        assert arm.fk(q) == pytest.approx(T, abs=1e-7)
+        assert arm.within_limits(q)
+    with pytest.raises(Unreachable, match='out of reach'):
+        arm.ik(pose_matrix([3.0, 0, 0]))
+
+
+def test_cartesian_line_to_joints_reports_deviation_and_limits(arm):
+    down = Rotation.from_euler('y', 180, degrees=True).as_quat()
+    seed = arm.ik(pose_matrix([0.6, -0.15, 0.45], down), seed=[0, 0.5, 1.2, 0, 1.4, 0])
+    line = geometry.Line((0.6, -0.15, 0.45), (0.6, 0.15, 0.45))
+    path = geometry.CartesianPath.timed(line, 2.0, 'quintic', orientations=[down])
+    result = kinematics.cartesian_to_joint(arm, path, seed)
+    assert result.max_deviation < 1e-4
+    assert np.all(result.peak_velocity <= arm.max_velocity)
+    T_end = arm.fk(result.trajectory.sample(2.0)[0][0])
+    assert T_end[:3, 3] == pytest.approx([0.6, 0.15, 0.45], abs=1e-9)
+
+
+def test_cartesian_path_through_a_singularity_is_refused(arm):
+    # Straight over the base: the wrist centre crosses the waist axis (shoulder singularity).
+    down = Rotation.from_euler('y', 180, degrees=True).as_quat()
+    start = [0.3, -0.3, 0.6]
+    seed = arm.ik(pose_matrix(start, down), seed=[0, 0.3, 1.0, 0, 1.0, 0])
+    line = geometry.Line(start, (-0.3, 0.3, 0.6))
+    path = geometry.CartesianPath.timed(line, 3.0, 'quintic', orientations=[down])
+    with pytest.raises(Unreachable, match=r'path fails at t = .*(jump|singular)'):
+        kinematics.cartesian_to_joint(arm, path, seed)
+
+
+def test_cartesian_path_too_fast_breaks_a_velocity_limit(arm):
+    down = Rotation.from_euler('y', 180, degrees=True).as_quat()
+    seed = arm.ik(pose_matrix([0.6, -0.3, 0.45], down), seed=[0, 0.5, 1.2, 0, 1.4, 0])
+    line = geometry.Line((0.6, -0.3, 0.45), (0.6, 0.3, 0.45))
+    path = geometry.CartesianPath.timed(line, 0.2, 'quintic', orientations=[down])
+    with pytest.raises(Unreachable, match='(velocity|acceleration) limit broken'):
+        kinematics.cartesian_to_joint(arm, path, seed, max_joint_step=10.0)
