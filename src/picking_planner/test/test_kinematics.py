@@ -172,3 +172,19 @@ def test_cartesian_path_too_fast_breaks_a_velocity_limit(arm):
     path = geometry.CartesianPath.timed(line, 0.2, 'quintic', orientations=[down])
     with pytest.raises(Unreachable, match='(velocity|acceleration) limit broken'):
         kinematics.cartesian_to_joint(arm, path, seed, max_joint_step=10.0)
+
+
+@pytest.mark.parametrize('fixture', ['arm', 'arm3'])
+def test_single_pose_fast_path_agrees_with_the_batched_solver(fixture, request):
+    model = request.getfixturevalue(fixture)
+    rng = np.random.default_rng(6)
+    Q = rng.uniform(model.lower, model.upper, (500, model.dof))
+    T = model.fk(Q)
+    seeds = np.clip(Q + rng.normal(0.0, 0.3, Q.shape), model.lower, model.upper)
+    batched, ok, _ = model.ik_batch(T, seeds)
+    for i in range(len(Q)):
+        if ok[i]:
+            assert model.ik(T[i], seeds[i]) == pytest.approx(batched[i], abs=1e-9)
+        else:
+            with pytest.raises(Unreachable):
+                model.ik(T[i], seeds[i])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -271,6 +272,11 @@ class ArmModel:
         """
         T = _check_pose(T)
         seed = self._seed(seed)
+        if hasattr(self._solver, 'solve_one'):
+            q, reason = self._solver.solve_one(T, seed.tolist())
+            if q is None:
+                raise Unreachable(reason)
+            return np.array(q)
         q, ok, reasons = self._solver.solve(T[None], seed[None])
         if not ok[0]:
             raise Unreachable(reasons[0])
@@ -323,13 +329,20 @@ class ArmModel:
 
 
 def _check_pose(T):
+    """A finite 4x4 pose with a proper rotation block, else ValueError (in plain floats: fast)."""
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f'pose must be a 4x4 homogeneous transform, got shape {T.shape}')
-    if not np.all(np.isfinite(T)):
+    rows = T.tolist()
+    if not all(math.isfinite(v) for row in rows for v in row):
         raise ValueError('pose must be finite')
-    R = T[:3, :3]
-    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+    a, b, c = rows[0][:3], rows[1][:3], rows[2][:3]
+    dots = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0, b[0] * b[0] + b[1] * b[1] + b[2] * b[2] - 1.0,
+            c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - 1.0, a[0] * b[0] + a[1] * b[1] + a[2] * b[2],
+            a[0] * c[0] + a[1] * c[1] + a[2] * c[2], b[0] * c[0] + b[1] * c[1] + b[2] * c[2])
+    det = (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+           + a[2] * (b[0] * c[1] - b[1] * c[0]))
+    if max(abs(d) for d in dots) > 1e-6 or det < 0:
         raise ValueError('pose rotation block must be a proper rotation matrix')
     return T
 

@@ -13,6 +13,8 @@ returned after forward kinematics confirms it (1e-9 m, 1e-9 rad).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 TWO_PI = 2.0 * np.pi
@@ -71,6 +73,9 @@ class _ClosedForm:
         self.l2, self.l3 = l2, l3
         self.reach = (abs(l2 - l3), l2 + l3)
         self.revolute = np.array([t != 'prismatic' for t in arm.joint_types], dtype=float)
+        self._revolute_flags = [t != 'prismatic' for t in arm.joint_types]
+        self._limits = (arm.lower.tolist(), arm.upper.tolist())
+        self.shoulder_list = self.shoulder.tolist()
 
     # Position part: waist, shoulder and elbow for wrist-centre targets W (N, 3),
     # four branches (front/back x elbow up/down). Returns (N, 4, 3) and reach mask (N,).
@@ -121,6 +126,58 @@ class _ClosedForm:
                           'beyond joint limits: every IK solution puts a joint outside its limits')
         return q, ok, reasons
 
+    def solve_one(self, T, seed):
+        """One pose, in plain floats: the same solutions as :meth:`solve`, a few µs each.
+
+        Returns ``(q, '')`` or ``(None, reason)``.
+        """
+        W = self._target_one(T)
+        arms = self._arm_branches_one(W, seed)
+        if arms is None:
+            return None, self._reach_reason(np.array(W))
+        lower, upper = self._limits
+        best, best_d = None, math.inf
+        for cand in self._complete_one(T, arms, seed):
+            total = 0.0
+            q = []
+            for j, v in enumerate(cand):
+                if self._revolute_flags[j]:
+                    v += TWO_PI * round((seed[j] - v) / TWO_PI)
+                    if not lower[j] - _TOL <= v <= upper[j] + _TOL:
+                        for alt in ((v + TWO_PI, v - TWO_PI) if seed[j] >= v else (v - TWO_PI, v + TWO_PI)):
+                            if lower[j] - _TOL <= alt <= upper[j] + _TOL:
+                                v = alt
+                                break
+                        else:
+                            break
+                elif not lower[j] - _TOL <= v <= upper[j] + _TOL:
+                    break
+                q.append(v)
+                total += (v - seed[j]) ** 2
+                if total >= best_d:
+                    break
+            else:
+                best, best_d = q, total
+        if best is None:
+            return None, 'beyond joint limits: every IK solution puts a joint outside its limits'
+        return best, ''
+
+    def _arm_branches_one(self, W, seed):
+        x, y, z = W[0] - self.shoulder[0], W[1] - self.shoulder[1], W[2] - self.shoulder[2]
+        rho = math.hypot(x, y)
+        l2, l3 = self.l2, self.l3
+        D = (rho * rho + z * z - l2 * l2 - l3 * l3) / (2.0 * l2 * l3)
+        if abs(D) > 1.0 + 1e-12:
+            return None
+        q1 = seed[0] if rho < _TOL else math.atan2(y, x)
+        q3 = math.acos(max(-1.0, min(1.0, D)))
+        out = []
+        for q1b, r in ((q1, rho), (q1 + math.pi, -rho)):
+            for q3b in (q3, -q3):
+                q2 = math.atan2(r, z) - math.atan2(l3 * math.sin(q3b), l2 + l3 * math.cos(q3b))
+                out.append((q1b, q2, q3b))
+        return out
+
     def all_solutions(self, T):
         seed = np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof))
         cand, reach_ok = self.candidates(T, seed)
@@ -156,6 +213,12 @@ class Elbow3R(_ClosedForm):
     def _targets(self, T):
         return T[:, :3, 3]
 
+    def _target_one(self, T):
+        return (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
+
+    def _complete_one(self, T, arms, seed):
+        return arms
+
     def candidates(self, T, seed):
         return self._arm_branches(self._targets(T), seed)
 
@@ -185,6 +248,33 @@ class SphericalWrist6R(_ClosedForm):
 
     def _targets(self, T):
         return (T @ self.tool_inv)[:, :3, 3]
+
+    def _target_one(self, T):
+        self._flange = F = (T @ self.tool_inv).tolist()
+        return (F[0][3], F[1][3], F[2][3])
+
+    def _complete_one(self, T, arms, seed):
+        F = self._flange
+        for q1, q2, q3 in arms:
+            c1, s1 = math.cos(q1), math.sin(q1)
+            c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
+            # Columns 2 and row 2 of R36 = R03^T R06, R03 = Rz(q1) Ry(q2 + q3).
+            r = [[c1 * c23 * F[0][j] + s1 * c23 * F[1][j] - s23 * F[2][j] for j in range(3)],
+                 [-s1 * F[0][j] + c1 * F[1][j] for j in range(3)],
+                 [c1 * s23 * F[0][j] + s1 * s23 * F[1][j] + c23 * F[2][j] for j in range(3)]]
+            s5 = math.hypot(r[0][2], r[1][2])
+            q5 = math.atan2(s5, r[2][2])
+            if s5 < _SINGULAR:
+                q4 = seed[3]
+                if r[2][2] > 0:
+                    q6 = math.atan2(r[1][0], r[0][0]) - q4
+                else:
+                    q6 = q4 - math.atan2(-r[0][1], r[1][1])
+            else:
+                q4 = math.atan2(r[1][2], r[0][2])
+                q6 = math.atan2(r[2][1], -r[2][0])
+            yield (q1, q2, q3, q4, q5, q6)
+            yield (q1, q2, q3, q4 + math.pi, -q5, q6 + math.pi)
 
     def candidates(self, T, seed):
         flange = T @ self.tool_inv
