@@ -10,8 +10,6 @@ import numpy as np
 from .errors import Unreachable
 from .urdf import chain, default_tip, parse_urdf
 
-TWO_PI = 2.0 * np.pi
-
 
 def _axis_rotations(axis, q):
     """Rotation matrices about a unit ``axis`` by angles ``q`` (N,), shape (N, 3, 3)."""

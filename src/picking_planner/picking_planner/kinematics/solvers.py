@@ -75,7 +75,6 @@ class _ClosedForm:
         self.revolute = np.array([t != 'prismatic' for t in arm.joint_types], dtype=float)
         self._revolute_flags = [t != 'prismatic' for t in arm.joint_types]
         self._limits = (arm.lower.tolist(), arm.upper.tolist())
-        self.shoulder_list = self.shoulder.tolist()
 
     # Position part: waist, shoulder and elbow for wrist-centre targets W (N, 3),
     # four branches (front/back x elbow up/down). Returns (N, 4, 3) and reach mask (N,).

@@ -91,7 +91,3 @@ def as_durations(durations, m: int) -> np.ndarray:
         raise ValueError(f'durations must be finite and > 0 s, got {arr.tolist()}')
     return arr
 
-
-def broadcast_joints(n: int, **vectors) -> list[np.ndarray]:
-    """Validate several per-joint vectors and broadcast them to ``n`` joints."""
-    return [as_joint_vector(v, name, n) for name, v in vectors.items()]
