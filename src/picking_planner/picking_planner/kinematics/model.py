@@ -269,12 +269,12 @@ class ArmModel:
             For non-finite or malformed input.
         """
         T = _check_pose(T)
-        seed = self._seed(seed)
         if hasattr(self._solver, 'solve_one'):
-            q, reason = self._solver.solve_one(T, seed.tolist())
+            q, reason = self._solver.solve_one(T, self._seed_list(seed))
             if q is None:
                 raise Unreachable(reason)
             return np.array(q)
+        seed = self._seed(seed)
         q, ok, reasons = self._solver.solve(T[None], seed[None])
         if not ok[0]:
             raise Unreachable(reasons[0])
@@ -301,6 +301,19 @@ class ArmModel:
             raise ValueError('T must be a finite array of poses, shape (N, 4, 4)')
         seed = np.broadcast_to(self._seed(seed), (T.shape[0], self.dof))
         return self._solver.solve(T, seed)
+
+    def _seed_list(self, seed):
+        """The seed as a list of floats (the single-pose fast path), validated."""
+        if seed is None:
+            return self._seed(None).tolist()
+        values = seed.tolist() if isinstance(seed, np.ndarray) else list(seed)
+        try:
+            values = [float(v) for v in values]
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'seed must be {self.dof} numbers') from exc
+        if len(values) != self.dof or not all(map(math.isfinite, values)):
+            raise ValueError(f'seed must be {self.dof} finite joint values')
+        return values
 
     def _seed(self, seed):
         if seed is None:
@@ -332,7 +345,8 @@ def _check_pose(T):
     if T.shape != (4, 4):
         raise ValueError(f'pose must be a 4x4 homogeneous transform, got shape {T.shape}')
     rows = T.tolist()
-    if not all(math.isfinite(v) for row in rows for v in row):
+    # One sum is finite only if every term is (a NaN or inf anywhere poisons it).
+    if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2]) + sum(rows[3])):
         raise ValueError('pose must be finite')
     a, b, c = rows[0][:3], rows[1][:3], rows[2][:3]
     dots = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0, b[0] * b[0] + b[1] * b[1] + b[2] * b[2] - 1.0,

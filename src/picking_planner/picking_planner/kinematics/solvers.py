@@ -61,6 +61,20 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
     return best, ok.all(axis=-1)
 
 
+def _wrap(v, s, lo, hi, revolute):
+    """One joint value shifted by 2 pi into [lo, hi], nearest ``s``; None if it cannot be."""
+    if revolute:
+        v += TWO_PI * round((s - v) / TWO_PI)
+    if lo - _TOL <= v <= hi + _TOL:
+        return v
+    if revolute:
+        step = TWO_PI if s >= v else -TWO_PI
+        for alt in (v + step, v - step):
+            if lo - _TOL <= alt <= hi + _TOL:
+                return alt
+    return None
+
+
 class _ClosedForm:
     """Shared shape of the closed-form solvers."""
 
@@ -134,29 +148,35 @@ class _ClosedForm:
         arms = self._arm_branches_one(W, seed)
         if arms is None:
             return None, self._reach_reason(np.array(W))
-        lower, upper = self._limits
+        lower, upper, revolute = self._limits[0], self._limits[1], self._revolute_flags
         best, best_d = None, math.inf
-        for cand in self._complete_one(T, arms, seed):
-            total = 0.0
-            q = []
-            for j, v in enumerate(cand):
-                if self._revolute_flags[j]:
-                    v += TWO_PI * round((seed[j] - v) / TWO_PI)
-                    if not lower[j] - _TOL <= v <= upper[j] + _TOL:
-                        for alt in ((v + TWO_PI, v - TWO_PI) if seed[j] >= v else (v - TWO_PI, v + TWO_PI)):
-                            if lower[j] - _TOL <= alt <= upper[j] + _TOL:
-                                v = alt
-                                break
-                        else:
-                            break
-                elif not lower[j] - _TOL <= v <= upper[j] + _TOL:
-                    break
-                q.append(v)
-                total += (v - seed[j]) ** 2
-                if total >= best_d:
-                    break
+        for arm_q in arms:
+            head, d_head = [], 0.0
+            for j in range(3):
+                v, sj = arm_q[j], seed[j]
+                # Fast accept: inside the limits and already the 2 pi image nearest the seed.
+                if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
+                    v = _wrap(v, sj, lower[j], upper[j], revolute[j])
+                    if v is None:
+                        break
+                head.append(v)
+                d_head += (v - sj) ** 2
             else:
-                best, best_d = q, total
+                if d_head >= best_d:
+                    continue
+                for wrist in self._wrist_one(arm_q, seed):
+                    q, d = head[:], d_head
+                    for j, v in enumerate(wrist, start=3):
+                        sj = seed[j]
+                        if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
+                            v = _wrap(v, sj, lower[j], upper[j], revolute[j])
+                            if v is None:
+                                break
+                        q.append(v)
+                        d += (v - sj) ** 2
+                    else:
+                        if d < best_d:
+                            best, best_d = q, d
         if best is None:
             return None, 'beyond joint limits: every IK solution puts a joint outside its limits'
         return best, ''
@@ -215,8 +235,8 @@ class Elbow3R(_ClosedForm):
     def _target_one(self, T):
         return (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
 
-    def _complete_one(self, T, arms, seed):
-        return arms
+    def _wrist_one(self, arm_q, seed):
+        return ((),)
 
     def candidates(self, T, seed):
         return self._arm_branches(self._targets(T), seed)
@@ -252,28 +272,35 @@ class SphericalWrist6R(_ClosedForm):
         self._flange = F = (T @ self.tool_inv).tolist()
         return (F[0][3], F[1][3], F[2][3])
 
-    def _complete_one(self, T, arms, seed):
+    def _wrist_one(self, arm_q, seed):
+        """The two wrist solutions (q4, q5, q6) for one arm branch: R36 = R03^T R06 in ZYZ."""
         F = self._flange
-        for q1, q2, q3 in arms:
-            c1, s1 = math.cos(q1), math.sin(q1)
-            c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
-            # Columns 2 and row 2 of R36 = R03^T R06, R03 = Rz(q1) Ry(q2 + q3).
-            r = [[c1 * c23 * F[0][j] + s1 * c23 * F[1][j] - s23 * F[2][j] for j in range(3)],
-                 [-s1 * F[0][j] + c1 * F[1][j] for j in range(3)],
-                 [c1 * s23 * F[0][j] + s1 * s23 * F[1][j] + c23 * F[2][j] for j in range(3)]]
-            s5 = math.hypot(r[0][2], r[1][2])
-            q5 = math.atan2(s5, r[2][2])
-            if s5 < _SINGULAR:
-                q4 = seed[3]
-                if r[2][2] > 0:
-                    q6 = math.atan2(r[1][0], r[0][0]) - q4
-                else:
-                    q6 = q4 - math.atan2(-r[0][1], r[1][1])
-            else:
-                q4 = math.atan2(r[1][2], r[0][2])
-                q6 = math.atan2(r[2][1], -r[2][0])
-            yield (q1, q2, q3, q4, q5, q6)
-            yield (q1, q2, q3, q4 + math.pi, -q5, q6 + math.pi)
+        q1, q2, q3 = arm_q
+        c1, s1 = math.cos(q1), math.sin(q1)
+        c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
+        # The rows of R03^T = (Rz(q1) Ry(q2 + q3))^T, applied to the flange rotation.
+        a0, a1, a2 = c1 * c23, s1 * c23, -s23
+        b0, b1 = -s1, c1
+        e0, e1, e2 = c1 * s23, s1 * s23, c23
+        r02 = a0 * F[0][2] + a1 * F[1][2] + a2 * F[2][2]
+        r12 = b0 * F[0][2] + b1 * F[1][2]
+        r22 = e0 * F[0][2] + e1 * F[1][2] + e2 * F[2][2]
+        r20 = e0 * F[0][0] + e1 * F[1][0] + e2 * F[2][0]
+        r21 = e0 * F[0][1] + e1 * F[1][1] + e2 * F[2][1]
+        s5 = math.hypot(r02, r12)
+        q5 = math.atan2(s5, r22)
+        if s5 < _SINGULAR:
+            # Only q4 + q6 (q4 - q6 when q5 = pi) is defined: keep q4 at the seed.
+            r00 = a0 * F[0][0] + a1 * F[1][0] + a2 * F[2][0]
+            r10 = b0 * F[0][0] + b1 * F[1][0]
+            r01 = a0 * F[0][1] + a1 * F[1][1] + a2 * F[2][1]
+            r11 = b0 * F[0][1] + b1 * F[1][1]
+            q4 = seed[3]
+            q6 = math.atan2(r10, r00) - q4 if r22 > 0 else q4 - math.atan2(-r01, r11)
+        else:
+            q4 = math.atan2(r12, r02)
+            q6 = math.atan2(r21, -r20)
+        return ((q4, q5, q6), (q4 + math.pi, -q5, q6 + math.pi))
 
     def candidates(self, T, seed):
         flange = T @ self.tool_inv
