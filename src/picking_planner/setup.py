@@ -1,6 +1,12 @@
+import glob
+import os
+
 from setuptools import find_packages, setup
 
 package_name = 'picking_planner'
+# The workspace's config/ (URDFs, joint limits, node parameters) is installed with
+# this package, so that a colcon install finds it in share/picking_planner/config.
+config_files = sorted(glob.glob(os.path.join('..', '..', 'config', '*')))
 
 setup(
     name=package_name,
@@ -9,6 +15,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', config_files),
     ],
     install_requires=['setuptools'],
     # Test dependencies go in extras_require: tests_require is ignored by colcon
@@ -22,6 +29,9 @@ setup(
     entry_points={
         'console_scripts': [
             'picking-plan = picking_planner.cli.plan:main',
+            'picking-planner = picking_planner.node:main',
+            'picking-goal = picking_planner.cli.goal:main',
+            'planner = picking_planner.node:main',
         ],
     },
 )

@@ -21,7 +21,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-
+            'picking-sim = picking_sim.node:main',
+            'sim = picking_sim.node:main',
         ],
     },
 )

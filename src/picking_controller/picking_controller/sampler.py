@@ -7,17 +7,20 @@ coefficients). The result is a picking_planner PiecewisePolynomial, so the
 coefficients are computed once per trajectory and every controller tick is
 one polynomial evaluation.
 
-Unlike ros2_controllers, positions-only input with more than two points is
-not left piecewise-linear (a velocity step at every point, the jerky motion
-users complain about): pass ``smooth_positions=True`` to get a C2 spline.
+Unlike ros2_controllers, positions-only input is not left piecewise-linear by
+default (a velocity step at every point: the jerky motion its users complain
+about): the points are joined by quintics whose velocities come from a
+shape-preserving (PCHIP) interpolant and whose accelerations are zero at the
+points, which is C2 and does not overshoot. ``smooth_positions=False`` gives
+the linear interpolation of ros2_controllers.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
-from picking_planner.trajectory import (PiecewisePolynomial, concatenate, hermite_coeffs, quintic,
-                                        quintic_via)
+from picking_planner.trajectory import PiecewisePolynomial, concatenate, hermite_coeffs, quintic
 
 
 def _block(values, name, shape):
@@ -35,7 +38,7 @@ def _block(values, name, shape):
 
 
 def from_points(times, positions, velocities=None, accelerations=None, start=None,
-                smooth_positions=False):
+                smooth_positions=True):
     """The trajectory through timed points.
 
     Parameters
@@ -50,7 +53,8 @@ def from_points(times, positions, velocities=None, accelerations=None, start=Non
         later than 0, a segment from this state leads into it, so a new
         trajectory splices onto the motion without a jump.
     smooth_positions : bool
-        For positions-only points, a C2 spline instead of straight lines.
+        For positions-only points: C2 shape-preserving quintics (default), or
+        straight lines (False).
 
     Returns
     -------
@@ -83,6 +87,8 @@ def from_points(times, positions, velocities=None, accelerations=None, start=Non
     a = _block(accelerations, 'accelerations', q.shape)
     if a is not None and v is None:
         raise ValueError('accelerations need velocities too')
+    if v is None and smooth_positions:
+        return _smooth_positions(t, q, start)
     main = _through(t, q, v, a, smooth_positions)
     if start is None or t[0] == 0.0:
         return main
@@ -94,14 +100,32 @@ def from_points(times, positions, velocities=None, accelerations=None, start=Non
     return concatenate([lead, main])
 
 
+def _smooth_positions(t, q, start):
+    """Quintics with PCHIP velocities and zero accelerations at the points; from ``start`` if given."""
+    v0 = a0 = None
+    if start is not None and t[0] > 0.0:
+        q0, v0, a0 = (np.broadcast_to(np.asarray(x, dtype=float), (q.shape[1],)) for x in start)
+        t = np.concatenate(([0.0], t))
+        q = np.vstack([q0, q])
+    if t.size == 1:
+        return _through(t, q, None, None, False)
+    vel = PchipInterpolator(t, q, axis=0).derivative()(t) if t.size > 2 else np.zeros_like(q)
+    vel[-1] = 0.0
+    acc = np.zeros_like(q)
+    if v0 is not None:
+        vel[0], acc[0] = v0, a0
+    elif t[0] == 0.0 and start is None:
+        vel[0] = 0.0
+    c = hermite_coeffs(q[:-1], vel[:-1], acc[:-1], q[1:], vel[1:], acc[1:], np.diff(t)[:, None])
+    return PiecewisePolynomial(t, c.transpose(0, 2, 1))
+
+
 def _through(t, q, v, a, smooth_positions):
     if t.size == 1:
         coeffs = np.zeros((1, 6, q.shape[1]))
         coeffs[0, 0] = q[0]
         return PiecewisePolynomial([t[0], t[0] + 1e-3], coeffs)
     dt = np.diff(t)
-    if v is None and smooth_positions and t.size > 2:
-        return quintic_via(q, dt).shifted(t[0])
     c = hermite_coeffs(q[:-1], None if v is None else v[:-1], None if a is None else a[:-1],
                        q[1:], None if v is None else v[1:], None if a is None else a[1:], dt[:, None])
     return PiecewisePolynomial(t, c.transpose(0, 2, 1))

@@ -6,8 +6,8 @@ import pytest
 from picking_controller.sampler import from_points
 
 
-def test_positions_only_is_linear_between_points():
-    traj = from_points([0.0, 1.0, 3.0], [[0.0], [1.0], [5.0]])
+def test_positions_only_can_be_linear_between_points_as_in_ros2_control():
+    traj = from_points([0.0, 1.0, 3.0], [[0.0], [1.0], [5.0]], smooth_positions=False)
     q, qd, qdd = traj.sample([0.5, 2.0])
     assert q[:, 0] == pytest.approx([0.5, 3.0])
     assert qd[:, 0] == pytest.approx([1.0, 2.0])
@@ -38,10 +38,14 @@ def test_a_later_first_point_splices_onto_the_current_state_without_a_jump():
     assert np.abs(np.diff(qd[:, 0])).max() < 0.01
 
 
-def test_smooth_positions_gives_continuous_velocity():
-    traj = from_points([0.0, 1.0, 2.0, 3.0], [[0.0], [1.0], [0.0], [1.0]], smooth_positions=True)
-    _, qd, _ = traj.sample(np.linspace(0, 3, 3001))
-    assert np.abs(np.diff(qd[:, 0])).max() < 0.05
+def test_positions_only_are_smooth_by_default_and_do_not_overshoot():
+    traj = from_points([0.0, 1.0, 2.0, 3.0], [[0.0], [1.0], [1.0], [2.0]])
+    q, qd, qdd = traj.sample(np.linspace(0, 3, 3001))
+    assert np.abs(np.diff(qd[:, 0])).max() < 0.01         # continuous velocity
+    assert np.abs(np.diff(qdd[:, 0])).max() < 0.1         # continuous acceleration
+    assert q[:, 0].min() >= -1e-12 and q[:, 0].max() <= 2.0 + 1e-12
+    assert np.all(np.diff(q[:, 0]) >= -1e-12)             # monotone data stays monotone
+    assert qd[-1, 0] == 0.0
 
 
 @pytest.mark.parametrize('times, positions, match', [

@@ -51,7 +51,8 @@ class ArmModel:
         self.name, links, joints = parse_urdf(urdf_text)
         if base not in links:
             raise ValueError(f'base frame {base!r} is not a link of the URDF')
-        tip = tip or default_tip(links, joints, base)
+        if tip is None:
+            tip = 'tool0' if 'tool0' in links else default_tip(links, joints, base)
         if tip not in links:
             raise ValueError(f'tool frame {tip!r} is not a link of the URDF')
         self.base_frame, self.tool_frame = base, tip
@@ -80,6 +81,13 @@ class ArmModel:
         self.max_velocity = np.array([j.velocity for j in movable])
         self.max_acceleration = np.full(self.dof, np.inf)
         self.max_jerk = np.full(self.dof, np.inf)
+        # Movable joints off the base-to-tool chain (a gripper): moved, not solved for.
+        in_chain = set(self.joint_names)
+        extra = [j for j in joints.values() if j.type != 'fixed' and j.name not in in_chain]
+        self.extra_joint_names = tuple(j.name for j in extra)
+        self._extra = {
+            'lower': np.array([j.lower for j in extra]), 'upper': np.array([j.upper for j in extra]),
+            'velocity': np.array([j.velocity for j in extra]), 'acceleration': np.full(len(extra), np.inf)}
         if joint_limits:
             self._apply_joint_limits(joint_limits)
         for a in (self.lower, self.upper, self.max_velocity, self.max_acceleration, self.max_jerk):
@@ -109,8 +117,26 @@ class ArmModel:
         """Build from URDF text, as published on ``robot_description``."""
         return cls(text, base, tip, joint_limits)
 
+    @property
+    def all_joint_names(self):
+        """The chain's joints, then the extra ones (gripper): what the simulator and controller move."""
+        return self.joint_names + self.extra_joint_names
+
+    @property
+    def all_limits(self):
+        """``(lower, upper, max_velocity, max_acceleration)`` over :attr:`all_joint_names`."""
+        e = self._extra
+        return (np.concatenate([self.lower, e['lower']]), np.concatenate([self.upper, e['upper']]),
+                np.concatenate([self.max_velocity, e['velocity']]),
+                np.concatenate([self.max_acceleration, e['acceleration']]))
+
     def _apply_joint_limits(self, limits):
         table = limits.get('joint_limits', limits)
+        for i, name in enumerate(self.extra_joint_names):
+            entry = table.get(name) or {}
+            if entry.get('has_acceleration_limits') and 'max_acceleration' in entry:
+                self._extra['acceleration'][i] = float(entry['max_acceleration'])
+        table = {k: v for k, v in table.items() if k not in self.extra_joint_names}
         unknown = set(table) - set(self.joint_names)
         if unknown:
             raise ValueError(f'joint limits name joints that are not in the arm: {sorted(unknown)}')

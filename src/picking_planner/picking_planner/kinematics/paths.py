@@ -102,17 +102,19 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     q = np.empty((n, arm.dof))
     prev = arm.check_joints(seed, 'seed')
     for i in range(n):
-        sol, ok, reasons = arm.ik_batch(poses[i:i + 1], prev)
-        where = f'at t = {t[i]:.3f} s (tool at {np.round(poses[i, :3, 3], 4).tolist()} m)'
-        if not ok[0]:
-            raise Unreachable(f'path fails {where}: {reasons[0]}')
-        step = np.abs(sol[0] - prev)
+        try:
+            sol = arm.ik(poses[i], prev)
+        except Unreachable as exc:
+            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at '
+                              f'{np.round(poses[i, :3, 3], 4).tolist()} m): {exc}') from None
+        step = np.abs(sol - prev)
         if i > 0 and step.max() > max_joint_step:
             j = int(step.argmax())
-            raise Unreachable(f'path fails {where}: joint {arm.joint_names[j]} would jump '
-                              f'{step[j]:.3f} rad in one sample (threshold {max_joint_step} rad); '
-                              'the path passes near a singularity or changes IK branch')
-        q[i] = prev = sol[0]
+            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at {np.round(poses[i, :3, 3], 4).tolist()} m): '
+                              f'joint {arm.joint_names[j]} would jump {step[j]:.3f} rad in one sample '
+                              f'(threshold {max_joint_step} rad); the path passes near a singularity or '
+                              'changes IK branch')
+        q[i] = prev = sol
     sigma = arm.min_singular_values(q)
     worst = int(np.argmin(sigma))
     if sigma[worst] < singular_threshold:

@@ -10,12 +10,12 @@ extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
 """
 
 from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb
-from .piecewise import PiecewisePolynomial, concatenate, hold
-from .polynomial import cubic, hermite_coeffs, quintic
+from .piecewise import PiecewisePolynomial, concatenate, hold, stack
+from .polynomial import brake, cubic, hermite_coeffs, quintic
 from .via import quintic_via
 
 __all__ = [
     'PiecewisePolynomial', 'Lspb', 'ViaLspb',
     'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'quintic_via',
-    'concatenate', 'hold', 'hermite_coeffs',
+    'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake',
 ]

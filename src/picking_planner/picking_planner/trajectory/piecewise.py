@@ -305,6 +305,39 @@ def concatenate(trajectories):
     return PiecewisePolynomial(np.concatenate(breaks), np.concatenate(coeffs))
 
 
+def stack(trajectories):
+    """Put trajectories of the same time span side by side as more joints.
+
+    Parameters
+    ----------
+    trajectories : sequence of PiecewisePolynomial
+        Same start and end time (within 1e-9 s).
+
+    Returns
+    -------
+    PiecewisePolynomial
+        Breaks at the union of theirs; joints in the order given.
+    """
+    trajectories = list(trajectories)
+    if not trajectories:
+        raise ValueError('stack needs at least one trajectory')
+    t0, t1 = trajectories[0].start_time, trajectories[0].end_time
+    for i, tr in enumerate(trajectories[1:], start=1):
+        if abs(tr.start_time - t0) > 1e-9 or abs(tr.end_time - t1) > 1e-9:
+            raise ValueError(f'trajectory {i} spans [{tr.start_time:.6g}, {tr.end_time:.6g}] s, '
+                             f'the first [{t0:.6g}, {t1:.6g}] s')
+    union = np.unique(np.concatenate([tr.breaks for tr in trajectories]))
+    keep = np.concatenate(([True], np.diff(union) > 1e-12 * max(1.0, t1 - t0)))
+    union = union[keep]
+    union[0], union[-1] = t0, t1
+    starts, mids = union[:-1], 0.5 * (union[:-1] + union[1:])
+    blocks = []
+    for tr in trajectories:
+        seg = np.clip(np.searchsorted(tr.breaks, mids, side='right') - 1, 0, len(tr.breaks) - 2)
+        blocks.append(taylor_shift(tr.coeffs[seg], starts - tr.breaks[seg]))
+    return PiecewisePolynomial(union, np.concatenate(blocks, axis=2))
+
+
 def hold(q, duration):
     """Stand still at ``q`` for ``duration`` seconds (a dwell, e.g. a grasp).
 

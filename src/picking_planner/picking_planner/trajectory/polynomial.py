@@ -131,3 +131,28 @@ def quintic(q0, qf, duration, v0=0.0, vf=0.0, a0=0.0, af=0.0):
     v0, vf, a0, af = (as_joint_vector(x, name, n) for name, x in
                       (('v0', v0), ('vf', vf), ('a0', a0), ('af', af)))
     return _single(hermite_coeffs(q0, v0, a0, qf, vf, af, duration), duration)
+
+
+def brake(q, qd, qdd, max_accel, min_duration=0.05):
+    """Bring a moving state to rest smoothly: a quintic from ``(q, qd, qdd)`` to rest.
+
+    The stop takes ``T = max(min_duration, 2 max|qd / max_accel|)`` and travels
+    ``qd T / 2`` (the distance of a symmetric deceleration), so the peak
+    deceleration stays near ``max_accel``.
+
+    Parameters
+    ----------
+    q, qd, qdd : array_like, shape (n_joints,)
+        Current state.
+    max_accel : float or array_like
+        Deceleration budget per joint, unit/s^2 (> 0; inf means "none given",
+        then 10 unit/s^2 is assumed).
+    """
+    q = as_joint_vector(q, 'q')
+    n = q.size
+    qd = as_joint_vector(qd, 'qd', n)
+    qdd = as_joint_vector(qdd, 'qdd', n)
+    a = np.asarray(max_accel, dtype=float) * np.ones(n)
+    a = np.where(np.isfinite(a) & (a > 0), a, 10.0)
+    T = max(float(min_duration), 2.0 * float(np.max(np.abs(qd) / a)))
+    return quintic(q, q + 0.5 * qd * T, T, qd, 0.0, qdd, 0.0)

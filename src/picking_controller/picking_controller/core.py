@@ -1,0 +1,268 @@
+"""The trajectory controller's logic, with no ROS in it.
+
+:class:`ControllerCore` holds the active trajectory on the controller's clock,
+produces the reference at every tick, validates new trajectories, splices them
+onto the current reference (no jump), monitors tracking against tolerances,
+and runs the feedback watchdog. The node only feeds it messages and the clock
+and publishes what it returns.
+
+Times are seconds on one clock (the node's ROS clock).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from picking_planner.trajectory import PiecewisePolynomial, brake, hold
+
+from .sampler import from_points
+
+#: Shortest lead-in from the current reference to a new trajectory's first point, s.
+MIN_LEAD = 0.02
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Tracking tolerances (rad, s), one value for every joint or one per joint."""
+
+    path: float = 0.1                    # largest |measured - reference| while moving
+    goal: float = 0.005                  # at the end
+    goal_time: float = 2.0               # s after the end to get within ``goal``
+    stopped_velocity: float = 0.02       # rad/s, "at rest" at the goal
+    state_timeout: float = 0.5           # s without joint_states before "feedback lost"
+
+
+@dataclass
+class Event:
+    """Something the node reports on ``controller_status``."""
+
+    level: str                           # 'OK', 'WARN' or 'ERROR'
+    message: str
+    values: dict = field(default_factory=dict)
+
+
+class ControllerCore:
+    """Reference generation and supervision for one arm.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The arm's joints, in command order.
+    lower, upper, max_velocity, max_acceleration : array_like
+        Limits per joint (inf where none).
+    tolerances : Tolerances
+    optional : sequence of str
+        Joints a trajectory may leave out (a gripper): they hold their reference.
+    """
+
+    def __init__(self, names, lower, upper, max_velocity, max_acceleration, tolerances=Tolerances(),
+                 optional=()):
+        self.names = list(names)
+        self.optional = set(optional)
+        self.n = len(self.names)
+        self.lower = np.asarray(lower, float)
+        self.upper = np.asarray(upper, float)
+        self.max_velocity = np.asarray(max_velocity, float)
+        self.max_acceleration = np.asarray(max_acceleration, float)
+        self.tol = tolerances
+        self.mode = 'waiting'            # waiting -> holding <-> moving; fault on a violation
+        self.traj: PiecewisePolynomial | None = None
+        self.t0 = 0.0                    # clock time of the trajectory's t = 0
+        self.measured_q = None
+        self.measured_qd = None
+        self.measured_time = None
+        self.feedback_ok = False
+        self.max_error = np.zeros(self.n)
+
+    # -- feedback -------------------------------------------------------------
+    def on_state(self, q, qd, stamp, now):
+        """A joint_states message (in arm order); ``stamp`` is its header time."""
+        events = []
+        self.measured_q = np.asarray(q, float)
+        self.measured_qd = None if qd is None else np.asarray(qd, float)
+        self.measured_time = now
+        if self.mode == 'waiting':
+            self._hold_at(self.measured_q, now)
+            self.mode = 'holding'
+            events.append(Event('OK', 'feedback received: holding the measured position',
+                                {'positions': self.measured_q.round(5).tolist()}))
+        elif not self.feedback_ok:
+            events.append(Event('OK', 'feedback restored: holding; send a new trajectory to move'))
+        self.feedback_ok = True
+        if self.mode == 'moving':
+            events += self._check_tracking(stamp if stamp > 0 else now, now)
+        return events
+
+    def _check_tracking(self, t_meas, now):
+        ref_q = self.traj.sample(t_meas - self.t0)[0][0]
+        err = self.measured_q - ref_q
+        np.maximum(self.max_error, np.abs(err), out=self.max_error)
+        bad = np.abs(err) > self.tol.path
+        if bad.any():
+            j = int(np.argmax(np.abs(err)))
+            self._stop(now)
+            self.mode = 'fault'
+            return [Event('ERROR', f'path tolerance violated: {self.names[j]} is {err[j]:+.4f} rad from the '
+                                   f'reference (tolerance {self.tol.path}); holding',
+                          {'joint': self.names[j], 'error': float(err[j])})]
+        end = self.t0 + self.traj.duration
+        if now >= end:
+            goal_q = self.traj.end_state()[0]
+            off = np.abs(self.measured_q - goal_q)
+            still = self.measured_qd is None or np.all(np.abs(self.measured_qd) <= self.tol.stopped_velocity)
+            if np.all(off <= self.tol.goal) and still:
+                self.mode = 'holding'
+                return [Event('OK', 'goal reached', {
+                    'final_error': float(off.max()), 'max_tracking_error': float(self.max_error.max()),
+                    'duration': self.traj.duration})]
+            if now > end + self.tol.goal_time:
+                j = int(np.argmax(off))
+                self._stop(now)
+                self.mode = 'fault'
+                return [Event('ERROR', f'goal tolerance violated: {self.names[j]} is {off[j]:.4f} rad from the '
+                                       f'goal {self.tol.goal_time} s after the end (tolerance {self.tol.goal}); '
+                                       'holding', {'joint': self.names[j], 'error': float(off[j])})]
+        return []
+
+    # -- the reference ------------------------------------------------------------
+    def reference(self, now):
+        """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
+        if self.traj is None:
+            return None
+        # A tick that read the clock just before a new trajectory was loaded gets the
+        # trajectory's start state (with its velocity), not the "before the start" hold.
+        q, qd, qdd = self.traj.sample(max(now - self.t0, self.traj.start_time))
+        return q[0], qd[0], qdd[0]
+
+    def tick(self, now):
+        """The watchdog; returns events (feedback lost)."""
+        if self.mode == 'waiting' or not self.feedback_ok:
+            return []
+        if now - self.measured_time > self.tol.state_timeout:
+            self.feedback_ok = False
+            was_moving = self.mode == 'moving'
+            self._stop(now)
+            self.mode = 'holding'
+            return [Event('ERROR', f'feedback lost: no joint_states for {now - self.measured_time:.2f} s '
+                                   f'(state_timeout {self.tol.state_timeout} s); '
+                                   + ('trajectory aborted, ' if was_moving else '') + 'holding')]
+        return []
+
+    def _hold_at(self, q, now):
+        self.traj = hold(q, 1.0)
+        self.t0 = now
+
+    def _stop(self, now):
+        """Brake the reference to rest, within the acceleration limits, then hold."""
+        self.traj = brake(*self.reference(now), self.max_acceleration)
+        self.t0 = now
+
+    # -- new trajectories -------------------------------------------------------------
+    def load(self, joint_names, times, positions, velocities, accelerations, start, now):
+        """Validate and start a trajectory; returns an Event (accepted or rejected).
+
+        Parameters
+        ----------
+        joint_names : sequence of str
+            The message's joint order.
+        times : array_like, shape (m,)
+            ``time_from_start`` of the points, s.
+        positions, velocities, accelerations : array_like, shape (m, k)
+            Empty velocities/accelerations mean "not given".
+        start : float
+            Clock time of the trajectory's start (header.stamp; 0 means now).
+        now : float
+        """
+        try:
+            if self.mode == 'waiting':
+                raise ValueError('no joint_states received yet: the controller does not know where the arm is')
+            if not self.feedback_ok:
+                raise ValueError('feedback lost: no joint_states; refusing to move blind')
+            order = self._order(joint_names)
+            self._held = self.reference(now)[0]
+            times = np.asarray(times, float)
+            m = times.size
+            pos = self._block(positions, m, len(joint_names), order, 'positions')
+            vel = self._block(velocities, m, len(joint_names), order, 'velocities', optional=True)
+            acc = self._block(accelerations, m, len(joint_names), order, 'accelerations', optional=True)
+            offset = (start - now) if start > 0 else 0.0
+            rel = times + offset
+            if m and rel[-1] <= MIN_LEAD:
+                raise ValueError('the trajectory ends in the past (or within 20 ms)')
+            # Points due within MIN_LEAD are dropped and replaced by a lead-in from the
+            # current reference: a lead-in shorter than that would need a violent move.
+            keep = rel > MIN_LEAD
+            keep[-1] = True
+            dropped = m - int(keep.sum())
+            if dropped:
+                # The last dropped point is where the plan expects the arm about now.
+                ref_q = self.reference(now)[0]
+                gap = np.abs(pos[~keep][-1] - ref_q).max()
+                if gap > self.tol.path:
+                    raise ValueError(f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the '
+                                     'current reference; give the first point a later time_from_start to '
+                                     'move there smoothly')
+                rel, pos = rel[keep], pos[keep]
+                vel = None if vel is None else vel[keep]
+                acc = None if acc is None else acc[keep]
+            self._check_limits(pos, vel, acc)
+            ref = self.reference(now)
+            traj = from_points(rel, pos, vel, acc, start=ref)
+            self._check_spline(traj)
+        except ValueError as exc:
+            return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference')
+        self.traj, self.t0 = traj, now
+        self.mode = 'moving'
+        self.max_error[:] = 0.0
+        return Event('OK', 'trajectory accepted', {'points': m, 'duration': float(traj.duration),
+                                                   'starts_in': float(max(offset, 0.0))})
+
+    def _order(self, joint_names):
+        names = list(joint_names)
+        if len(set(names)) != len(names):
+            raise ValueError(f'joint names repeat: {names}')
+        unknown = [n for n in names if n not in self.names]
+        missing = [n for n in self.names if n not in names and n not in self.optional]
+        if unknown:
+            raise ValueError(f'unknown joints {unknown} (this arm has {self.names})')
+        if missing:
+            raise ValueError(f'missing joints {missing}')
+        return [names.index(n) if n in names else -1 for n in self.names]
+
+    def _block(self, values, m, k, order, what, optional=False):
+        rows = [np.asarray(v, float) for v in values]
+        if optional and all(r.size == 0 for r in rows):
+            return None
+        if m == 0:
+            raise ValueError('no points')
+        if len(rows) != m or any(r.shape != (k,) for r in rows):
+            raise ValueError(f'every point needs {k} {what} (one per joint name)')
+        given = np.array(rows)
+        if not np.all(np.isfinite(given)):
+            raise ValueError(f'{what} must be finite')
+        arr = given[:, np.maximum(order, 0)]
+        left_out = np.array(order) < 0
+        if left_out.any():
+            # Joints the trajectory leaves out hold where their reference is.
+            arr[:, left_out] = self._held[left_out] if what == 'positions' else 0.0
+        return arr
+
+    def _check_limits(self, pos, vel, acc, slack=1e-6):
+        for what, arr, lo, hi in (('position', pos, self.lower, self.upper),
+                                  ('velocity', vel, -self.max_velocity, self.max_velocity),
+                                  ('acceleration', acc, -self.max_acceleration, self.max_acceleration)):
+            if arr is None:
+                continue
+            bad = (arr < lo - slack) | (arr > hi + slack)
+            if bad.any():
+                i, j = np.argwhere(bad)[0]
+                raise ValueError(f'point {i}: {self.names[j]} {what} {arr[i, j]:.4g} is beyond its limit '
+                                 f'[{lo[j]:.4g}, {hi[j]:.4g}]')
+
+    def _check_spline(self, traj):
+        """The spline between the points must respect the limits too."""
+        t = np.linspace(0.0, traj.duration, max(50, 4 * len(traj.breaks)))
+        q, qd, qdd = traj.sample(np.union1d(t, traj.breaks - traj.start_time))
+        self._check_limits(q, qd, None, slack=1e-3)

@@ -1,0 +1,101 @@
+"""The controller's logic without ROS: splicing, tolerances, goal, watchdog, refusals."""
+
+import numpy as np
+import pytest
+
+from picking_controller.core import ControllerCore, Tolerances
+
+NAMES = ['a', 'b', 'gripper']
+INF = np.inf
+
+
+def core(**tol):
+    c = ControllerCore(NAMES, [-3, -3, 0], [3, 3, 0.1], [2, 2, 0.3], [10, 10, 3], Tolerances(**tol),
+                       optional=['gripper'])
+    c.on_state([0.0, 0.0, 0.05], [0.0, 0.0, 0.0], 0.0, now=0.0)
+    return c
+
+
+def test_waits_for_feedback_then_holds_the_measured_position():
+    c = ControllerCore(NAMES, [-3] * 3, [3] * 3, [2] * 3, [10] * 3)
+    assert c.reference(0.0) is None
+    event = c.load(NAMES, [1.0], [[1, 1, 0]], [], [], 0.0, now=0.0)
+    assert event.level == 'ERROR' and 'no joint_states' in event.message
+    events = c.on_state([0.2, -0.1, 0.0], None, 0.0, now=0.0)
+    assert 'feedback received' in events[0].message
+    q, qd, _ = c.reference(0.5)
+    assert q == pytest.approx([0.2, -0.1, 0.0]) and np.all(qd == 0)
+
+
+def test_trajectory_runs_and_the_goal_is_reported():
+    c = core()
+    ev = c.load(['b', 'a'], [1.0], [[0.5, 1.0]], [], [], 0.0, now=0.0)
+    assert ev.level == 'OK', ev.message
+    q, _, _ = c.reference(1.0)
+    assert q == pytest.approx([1.0, 0.5, 0.05])          # reordered; gripper held
+    events = c.on_state([1.0, 0.5, 0.05], [0, 0, 0], 1.1, now=1.1)
+    assert events and events[0].message == 'goal reached'
+
+
+def test_new_trajectory_splices_on_without_a_velocity_jump():
+    c = core()
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    now = 1.0
+    before = c.reference(now)
+    c.load(['a', 'b'], [0.5, 1.5], [[0.8, 0.0], [-0.5, 0.3]], [], [], 0.0, now=now)
+    after = c.reference(now)
+    assert after[0] == pytest.approx(before[0]) and after[1] == pytest.approx(before[1])
+    t = now + np.linspace(0, 0.1, 101)
+    v = np.array([c.reference(x)[1] for x in t])
+    assert np.abs(np.diff(v, axis=0)).max() < 0.05
+
+
+def test_path_tolerance_violation_brakes_and_holds():
+    c = core(path=0.05)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
+    events = c.on_state([0.3, 0.0, 0.05], None, 0.5, now=0.5)
+    assert events[0].level == 'ERROR' and 'path tolerance' in events[0].message
+    assert c.mode == 'fault'
+    q_end = c.reference(10.0)
+    assert np.all(q_end[1] == 0)                          # at rest
+    assert abs(q_end[0][0] - c.reference(0.5)[0][0]) < 0.5
+
+
+def test_watchdog_reports_feedback_lost_and_refuses_to_move_blind():
+    c = core(state_timeout=0.2)
+    assert c.tick(0.1) == []
+    events = c.tick(0.3)
+    assert events[0].level == 'ERROR' and 'feedback lost' in events[0].message
+    ev = c.load(['a', 'b'], [1.0], [[1.0, 0.0]], [], [], 0.0, now=0.4)
+    assert ev.level == 'ERROR' and 'feedback lost' in ev.message
+    events = c.on_state([0.0, 0.0, 0.05], None, 0.5, now=0.5)
+    assert 'feedback restored' in events[0].message
+
+
+def test_future_start_stamp_waits_then_moves():
+    c = core()
+    ev = c.load(['a', 'b'], [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [], [], 5.0, now=4.0)
+    assert ev.level == 'OK'
+    assert abs(c.reference(4.5)[0][0]) < 1e-9           # waits at its place until the start
+    assert c.reference(5.0)[0][0] == pytest.approx(0.0)
+    assert c.reference(6.0)[0][0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize('names, times, pos, reason', [
+    (['a', 'x'], [1.0], [[0, 0]], 'unknown joints'),
+    (['a'], [1.0], [[0]], 'missing joints'),
+    (['a', 'a'], [1.0], [[0, 0]], 'repeat'),
+    (['a', 'b'], [], [], 'no points'),
+    (['a', 'b'], [1.0, 0.5], [[0, 0], [1, 1]], 'increase strictly'),
+    (['a', 'b'], [1.0], [[np.nan, 0]], 'finite'),
+    (['a', 'b'], [1.0], [[3.5, 0]], 'beyond its limit'),
+    (['a', 'b'], [0.2], [[2.0, 0]], 'beyond its limit'),      # 10 rad/s between the points
+    (['a', 'b'], [1.0], [[0, 0, 0]], 'every point needs 2 positions'),
+])
+def test_bad_trajectories_are_refused_and_the_reference_stays(names, times, pos, reason):
+    c = core()
+    before = c.reference(0.0)
+    ev = c.load(names, times, pos, [], [], 0.0, now=0.0)
+    assert ev.level == 'ERROR' and reason in ev.message, ev.message
+    assert c.reference(0.0)[0] == pytest.approx(before[0])
+    assert c.mode == 'holding'

@@ -1,0 +1,288 @@
+"""``picking-planner``: the planner node (ROS shell around planning.py).
+
+Subscribes ``goal_pose`` (PoseStamped), ``goal_path`` (PoseArray),
+``pick_target`` (PoseStamped), ``joint_states`` and ``joint_commands`` (the
+controller's reference, so that a goal mid-motion continues smoothly);
+publishes ``joint_trajectory``, ``planned_path`` and, for every goal,
+``planner_status``: OK with a summary, or ERROR with the reason.
+
+The method is the ``method`` parameter (pose goals) or ``path_method`` (path
+goals), both settable at run time; ``picking-goal --method`` sets them for one
+goal. Every parameter is validated when it is set.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from .kinematics import ArmModel, Unreachable, pose_matrix
+from .pick_cycle import PickCycle, PickSettings
+from .planning import Planner, PlannerSettings
+from .resources import default_urdf
+from .ros_common import ERROR, OK, reorder, run_node, status
+
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
+            'cartesian_accel', 'max_joint_step')
+PICK = ('approach_distance', 'lift_height', 'lift_method', 'grasp_time', 'release_time', 'box_position',
+        'box_drop_height', 'home_positions', 'transfer_method', 'place_orientation_rpy')
+
+
+def msg_pose(pose):
+    """4x4 matrix from a geometry_msgs/Pose; ValueError for NaN or a zero quaternion."""
+    p, o = pose.position, pose.orientation
+    return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
+
+
+def stamp_key(stamp):
+    return f'{stamp.sec}.{stamp.nanosec:09d}'
+
+
+class PlannerNode(Node):
+    """ROS interface of the planner."""
+
+    def __init__(self, **kwargs):
+        super().__init__('picking_planner', **kwargs)
+        defaults = PlannerSettings()
+        self.declare_parameter('urdf_path', '')
+        self.declare_parameter('reference_timeout', 0.1)
+        self.declare_parameter('start_delay', 0.05)
+        for name in SETTINGS:
+            self.declare_parameter(name, getattr(defaults, name))
+        pick = PickSettings()
+        for name in PICK:
+            self.declare_parameter(name, getattr(pick, name))
+        self.arm = ArmModel.from_urdf(self.get_parameter('urdf_path').value or default_urdf())
+        self.names = list(self.arm.joint_names)
+        self.planner = Planner(self.arm, self._settings({}))
+        self.pick = PickSettings(**{n: self.get_parameter(n).value for n in PICK}).validate(self.arm)
+        self.add_on_set_parameters_callback(self._on_parameters)
+
+        self.lock = threading.Lock()
+        self.measured = None          # (q, time)
+        self.pending = []             # goals that came before the first joint_states
+        self.create_timer(0.1, self._expire_pending)
+        self.gripper = None           # measured finger opening, m (if the arm has a gripper)
+        self.reference = None         # (q, qd, qdd, time)
+        self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
+        self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
+        self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', RELIABLE)
+        self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, RELIABLE)
+        self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, RELIABLE)
+        self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, RELIABLE)
+        self.create_subscription(JointState, 'joint_states', self._on_state, qos_profile_sensor_data)
+        self.create_subscription(JointState, 'joint_commands', self._on_reference, qos_profile_sensor_data)
+        self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
+                               f'method {self.planner.settings.method}, path_method '
+                               f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')
+
+    # -- parameters -------------------------------------------------------------------
+    def _settings(self, changes):
+        values = {n: self.get_parameter(n).value for n in SETTINGS}
+        values.update(changes)
+        return PlannerSettings(**values).validate()
+
+    def _on_parameters(self, params):
+        changes = {p.name: p.value for p in params}
+        try:
+            if set(changes) & set(SETTINGS):
+                planner = Planner(self.arm, self._settings({k: v for k, v in changes.items() if k in SETTINGS}))
+            else:
+                planner = self.planner
+            if set(changes) & set(PICK):
+                values = {n: self.get_parameter(n).value for n in PICK}
+                values.update({k: v for k, v in changes.items() if k in PICK})
+                pick = PickSettings(**values).validate(self.arm)
+            else:
+                pick = self.pick
+            if 'urdf_path' in changes:
+                raise ValueError('urdf_path cannot change while the node runs')
+        except (ValueError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.planner, self.pick = planner, pick
+        return SetParametersResult(successful=True)
+
+    # -- state ---------------------------------------------------------------------------
+    def _now(self):
+        return time.monotonic()
+
+    def _on_state(self, msg):
+        try:
+            q = reorder(msg.name, msg.position, self.names, 'joint_states')
+        except (ValueError, IndexError):
+            return
+        if np.all(np.isfinite(q)):
+            self.measured = (q, self._now())
+            while self.pending:
+                self._handle(*self.pending.pop(0)[:3])
+        if 'gripper_joint' in msg.name:
+            g = msg.position[list(msg.name).index('gripper_joint')]
+            self.gripper = g if np.isfinite(g) else None
+
+    def _on_reference(self, msg):
+        try:
+            q = reorder(msg.name, msg.position, self.names, 'joint_commands')
+            qd = reorder(msg.name, msg.velocity, self.names, 'joint_commands') if len(msg.velocity) else 0 * q
+            qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands') if len(msg.effort) else 0 * q
+        except (ValueError, IndexError):
+            return
+        if np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd)):
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            self.reference = (q, qd, qdd, self._now(), stamp)
+
+    def start_state(self, delay=None):
+        """Where the plan starts: ``(q, qd, qdd), source, start time``.
+
+        While the controller publishes a fresh reference, the plan starts
+        ``start_delay`` s from now on that reference (extrapolated from its stamp),
+        and the trajectory is stamped to start then: planning and transport
+        time never make the arm jump. Otherwise it starts now from the measured
+        state, at rest (start time None: on arrival).
+        """
+        timeout = self.get_parameter('reference_timeout').value
+        ref = self.reference
+        if ref is not None and self._now() - ref[3] <= timeout:
+            q, qd, qdd, _, stamp = ref
+            if delay is None:
+                delay = self.get_parameter('start_delay').value
+            t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
+            dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
+            return (q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), 'reference', t_start
+        if self.measured is None:
+            raise ValueError('no joint_states received yet: the planner does not know where the arm is')
+        q = self.measured[0]
+        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', None
+
+    # -- goals ---------------------------------------------------------------------------
+    def _check_frame(self, header):
+        frame = header.frame_id.lstrip('/')
+        if frame not in ('', self.arm.base_frame):
+            raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
+                             '(no TF here: give poses in the base frame, or leave frame_id empty)')
+
+    def _on_goal_pose(self, msg):
+        self._handle('pose', msg.header, lambda start: self.planner.plan_pose(start, self._pose(msg)))
+
+    def _on_goal_path(self, msg):
+        def plan(start):
+            if not msg.poses:
+                raise ValueError('goal_path has no poses')
+            return self.planner.plan_path(start, [msg_pose(p) for p in msg.poses])
+        self._handle('path', msg.header, plan)
+
+    def _on_pick_target(self, msg):
+        self._handle('pick', msg.header, lambda start: PickCycle(self.planner, self.pick).plan(
+            start, self._pose(msg), gripper_start=self.gripper))
+
+    def _pose(self, msg):
+        return msg_pose(msg.pose)
+
+    def _expire_pending(self):
+        while self.pending and self._now() - self.pending[0][3] > 2.0:
+            kind, header, _, _ = self.pending.pop(0)
+            self._refuse(kind, stamp_key(header.stamp),
+                         'no joint_states received within 2 s: the planner does not know where the arm is')
+
+    def _refuse(self, kind, key, reason):
+        self.pub_status.publish(status('picking_planner', ERROR, f'{kind} goal refused: {reason}',
+                                       goal=key, kind=kind))
+        self.get_logger().error(f'{kind} goal refused: {reason}')
+
+    def _handle(self, kind, header, plan_fn):
+        key = stamp_key(header.stamp)
+        if self.measured is None and self.reference is None:
+            # Just started: discovery of the arm's joint_states may still be running.
+            self.pending.append((kind, header, plan_fn, self._now()))
+            return
+        t0 = time.perf_counter()
+        try:
+            with self.lock:
+                self._check_frame(header)
+                delay = self.get_parameter('start_delay').value
+                for _ in range(4):
+                    start, source, t_start = self.start_state(delay)
+                    plan = plan_fn(start)
+                    # Planning must finish before the plan's start; else plan again, further ahead.
+                    if t_start is None or self.get_clock().now().nanoseconds * 1e-9 < t_start - 0.01:
+                        break
+                    delay = 2.0 * delay + (time.perf_counter() - t0)
+        except (ValueError, Unreachable) as exc:
+            self._refuse(kind, key, str(exc))
+            return
+        planning_ms = (time.perf_counter() - t0) * 1e3
+        if not self._controller_listens():
+            self._refuse(kind, key, f'no controller subscribes to {self.pub_traj.topic_name}: '
+                                    'the plan was not sent')
+            return
+        self._publish(plan, t_start)
+        summary = plan.summary(self.planner.settings.sample_period)
+        segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
+        self.pub_status.publish(status(
+            'picking_planner', OK, f'{kind} goal accepted: {plan.method}, {plan.duration:.3f} s',
+            goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
+            peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
+            segments=segments, planning_ms=planning_ms, **getattr(plan, 'extra', {})))
+        self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
+
+    def _controller_listens(self, wait=2.0):
+        """True once a controller's subscription has matched (discovery may still be running)."""
+        end = time.monotonic() + wait
+        while self.pub_traj.get_subscription_count() == 0:
+            if time.monotonic() > end:
+                return False
+            time.sleep(0.02)
+        return True
+
+    def _publish(self, plan, t_start=None):
+        t, q, qd, qdd = plan.samples(self.planner.settings.sample_period)
+        msg = JointTrajectory()
+        msg.joint_names = list(plan.joint_names or self.names)
+        if t_start is not None:               # else stamp zero: start on arrival
+            msg.header.stamp.sec = int(t_start)
+            msg.header.stamp.nanosec = int((t_start - int(t_start)) * 1e9)
+        points = []
+        for i in range(len(t)):
+            p = JointTrajectoryPoint()
+            p.positions = q[i].tolist()
+            p.velocities = qd[i].tolist()
+            p.accelerations = qdd[i].tolist()
+            sec = int(t[i])
+            p.time_from_start = Duration(sec=sec, nanosec=int(round((t[i] - sec) * 1e9)) % 1_000_000_000)
+            points.append(p)
+        msg.points = points
+        self.pub_traj.publish(msg)
+        arm_q = q[:, :self.arm.dof]
+        tool = self.arm.fk(arm_q[::2] if len(arm_q) > 2 else arm_q)
+        path = Path()
+        path.header.frame_id = self.arm.base_frame
+        path.header.stamp = self.get_clock().now().to_msg()
+        from scipy.spatial.transform import Rotation
+        quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
+        for T, qt in zip(tool, quats):
+            ps = PoseStamped()
+            ps.header = path.header
+            ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, T[:3, 3])
+            (ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z,
+             ps.pose.orientation.w) = map(float, qt)
+            path.poses.append(ps)
+        self.pub_path.publish(path)
+
+
+def main(args=None):
+    return run_node(PlannerNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

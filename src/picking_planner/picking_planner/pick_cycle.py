@@ -1,0 +1,223 @@
+"""The apple pick-and-place cycle of the paper's Table 1, as one plan (pure core).
+
+P0 home -> P1 approach (pre-grasp pose, ``approach_distance`` back along the
+tool's z axis; a joint-space move) -> P2 at the apple (a straight Cartesian
+line) -> grasp (a dwell while the gripper closes) -> P3 lift and detach (a short
+line up, or an arc that lifts and pulls back) -> P4 above the fruit box
+(joint-space via-point LSPB through home for the long transfer) -> P5 into the
+box (a line down) -> release (a dwell while the gripper opens) -> back to P0
+(via-point LSPB up through P4).
+
+The gripper is a joint of the plan (``gripper_joint``, the finger opening in m),
+so grasp and release reach every subscriber of ``joint_states`` with their times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import geometry, trajectory
+from .kinematics import Unreachable
+from .planning import JOINT_METHODS, Plan, Segment
+
+LIFT_METHODS = ('line', 'arc')
+TRANSFER_METHODS = ('via_lspb', 'quintic_via')
+
+
+@dataclass(frozen=True)
+class PickSettings:
+    """The cycle's geometry and timing (config/pick_cycle.yaml). SI units, radians.
+
+    Attributes
+    ----------
+    home_positions : list of float
+        P0, rad (one per arm joint).
+    approach_distance : float
+        P1 lies this far back from the apple along the tool's z axis, m.
+    lift_height : float
+        P3 lies this far above the apple, m.
+    lift_method : str
+        ``line`` (straight up) or ``arc`` (up and back along a quarter-arc: twists the
+        stem less).
+    grasp_time, release_time : float
+        Dwells while the gripper closes and opens, s.
+    box_position : list of float
+        P5, the drop point in the box, m (base frame).
+    box_drop_height : float
+        P4 lies this far above P5, m.
+    place_orientation_rpy : list of float
+        Tool orientation over the box, roll-pitch-yaw in rad (default: pointing down).
+    transfer_method : str
+        ``via_lspb`` or ``quintic_via`` for the transfer and the return.
+    gripper_open, gripper_closed : float
+        Finger opening, m.
+    """
+
+    home_positions: tuple = (0.0, 0.2, 1.6, 0.0, 1.3, 0.0)
+    approach_distance: float = 0.10
+    lift_height: float = 0.06
+    lift_method: str = 'line'
+    grasp_time: float = 0.3
+    release_time: float = 0.25
+    box_position: tuple = (0.05, -0.55, 0.30)
+    box_drop_height: float = 0.12
+    place_orientation_rpy: tuple = (np.pi, 0.0, 0.0)
+    transfer_method: str = 'via_lspb'
+    gripper_open: float = 0.09
+    gripper_closed: float = 0.055
+
+    def validate(self, arm):
+        """Check every value against the arm; returns self."""
+        if len(self.home_positions) != arm.dof or not np.all(np.isfinite(self.home_positions)):
+            raise ValueError(f'home_positions must be {arm.dof} finite joint values (rad)')
+        if not arm.within_limits(np.asarray(self.home_positions, float)):
+            raise ValueError(f'home_positions {list(self.home_positions)} are outside the joint limits')
+        for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f'{name} must be a finite number > 0, got {value}')
+        for name, n in (('box_position', 3), ('place_orientation_rpy', 3)):
+            value = np.asarray(getattr(self, name), float)
+            if value.shape != (n,) or not np.all(np.isfinite(value)):
+                raise ValueError(f'{name} must be {n} finite numbers')
+        if self.lift_method not in LIFT_METHODS:
+            raise ValueError(f'lift_method must be one of {LIFT_METHODS}, got {self.lift_method!r}')
+        if self.transfer_method not in TRANSFER_METHODS:
+            raise ValueError(f'transfer_method must be one of {TRANSFER_METHODS}, got {self.transfer_method!r}')
+        if not 0.0 <= self.gripper_closed < self.gripper_open:
+            raise ValueError('need 0 <= gripper_closed < gripper_open')
+        return self
+
+
+def _offset(T, local):
+    """Pose ``T`` moved by ``local`` in its own frame."""
+    out = T.copy()
+    out[:3, 3] = T[:3, :3] @ np.asarray(local, float) + T[:3, 3]
+    return out
+
+
+class PickCycle:
+    """Plans Table 1 for one apple with a :class:`~picking_planner.planning.Planner`."""
+
+    def __init__(self, planner, settings=PickSettings()):
+        self.planner = planner
+        self.arm = planner.arm
+        self.s = settings
+
+    def key_poses(self, T_apple):
+        """P1..P5 as 4x4 poses (P0 is a joint configuration)."""
+        s = self.s
+        P2 = np.asarray(T_apple, float)
+        P1 = _offset(P2, [0.0, 0.0, -s.approach_distance])
+        P3 = P2.copy()
+        P3[2, 3] += s.lift_height
+        P5 = np.eye(4)
+        P5[:3, :3] = Rotation.from_euler('xyz', s.place_orientation_rpy).as_matrix()
+        P5[:3, 3] = s.box_position
+        P4 = P5.copy()
+        P4[2, 3] += s.box_drop_height
+        return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
+
+    def plan(self, start, T_apple, gripper_start=None):
+        """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
+
+        Raises Unreachable naming the knot point that cannot be reached.
+        """
+        pl, s, arm = self.planner, self.s, self.arm
+        joint_method = pl.settings.method if pl.settings.method in JOINT_METHODS else 'quintic'
+        poses = self.key_poses(T_apple)
+        home = np.asarray(s.home_positions, float)
+        q_now = np.asarray(start[0], float)
+        # Step C first: every knot point must be reachable before anything moves.
+        q = {}
+        seed = home
+        for name in ('P1', 'P2', 'P3', 'P4', 'P5'):
+            try:
+                q[name] = arm.check_reachable(poses[name], seed=seed)
+            except Unreachable as exc:
+                raise Unreachable(f'{name} ({_LABELS[name]}): {exc}') from None
+            seed = q[name]
+        parts, cart = [], []
+
+        def add(label, method, traj, path=None):
+            parts.append((label, method, traj))
+            if path is not None:
+                cart.append((len(parts) - 1, path))
+
+        stop, q_rest = pl._from_rest(start)
+        if stop is not None:
+            add('brake', 'quintic', stop)
+        if np.abs(q_rest - home).max() > 1e-4:
+            add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
+        add('P1 approach', joint_method, pl.joint_move(home, q['P1'], joint_method))
+        traj, path = pl.line(q['P1'], arm.fk(q['P1']), poses['P2'])
+        add('P2 to the apple', 'line', traj, path)
+        q_apple = traj.end_state()[0]
+        add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
+        if s.lift_method == 'line':
+            traj, path = pl.line(q_apple, arm.fk(q_apple), poses['P3'])
+        else:
+            T2 = arm.fk(q_apple)
+            back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
+            back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
+            mid = T2.copy()
+            mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
+            end = T2.copy()
+            end[:3, 3] += back + np.array([0, 0, s.lift_height])
+            traj, path = pl.arc(q_apple, T2, mid, end)
+        add('P3 lift and detach', s.lift_method, traj, path)
+        q_lift = traj.end_state()[0]
+        transfer = pl._via(np.array([q_lift, home, q['P4']]), s.transfer_method)
+        add('P4 above the box', s.transfer_method, transfer)
+        traj, path = pl.line(q['P4'], arm.fk(q['P4']), poses['P5'])
+        add('P5 into the box', 'line', traj, path)
+        q_box = traj.end_state()[0]
+        add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
+        add('P0 back home', s.transfer_method, pl._via(np.array([q_box, q['P4'], home]), s.transfer_method))
+
+        plan = pl._join(parts, 'pick', cart)
+        gripper, events = self._gripper(plan, gripper_start)
+        whole = trajectory.stack([plan.trajectory, gripper])
+        return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)
+
+    def _gripper_time(self, wanted):
+        """A dwell long enough for the fingers to move within their limits (quintic peaks)."""
+        names = self.arm.all_joint_names
+        if 'gripper_joint' not in names:
+            return wanted
+        i = names.index('gripper_joint')
+        _, _, vmax, amax = self.arm.all_limits
+        travel = self.s.gripper_open - self.s.gripper_closed
+        need = max(1.875 * travel / vmax[i], np.sqrt(5.78 * travel / amax[i]) if np.isfinite(amax[i]) else 0.0)
+        return max(wanted, 1.02 * need)
+
+    def _gripper(self, plan, gripper_start):
+        """The finger opening over the plan: closes during the grasp dwell, opens during release."""
+        s = self.s
+        g0 = s.gripper_open if gripper_start is None else float(gripper_start)
+        parts, t = [], 0.0
+        g = g0
+        events = {}
+        for seg in plan.segments:
+            if seg.label == 'grasp':
+                parts.append(trajectory.quintic(g, s.gripper_closed, seg.duration))
+                g = s.gripper_closed
+                events['grasp_start'], events['grasp_end'] = seg.start, seg.start + seg.duration
+            elif seg.label == 'release':
+                parts.append(trajectory.quintic(g, s.gripper_open, seg.duration))
+                g = s.gripper_open
+                events['release_start'], events['release_end'] = seg.start, seg.start + seg.duration
+            elif seg.label in ('brake', 'P0 home') and g != s.gripper_open \
+                    and seg.duration >= self._gripper_time(0.0):
+                parts.append(trajectory.quintic(g, s.gripper_open, seg.duration))
+                g = s.gripper_open
+            else:
+                parts.append(trajectory.hold(g, seg.duration))
+            t += seg.duration
+        return trajectory.concatenate(parts), events
+
+
+_LABELS = {'P1': 'approach', 'P2': 'the apple', 'P3': 'lift', 'P4': 'above the box', 'P5': 'into the box'}

@@ -1,0 +1,344 @@
+"""From goals to joint trajectories (pure core of the planner node).
+
+:class:`Planner` turns a tool pose, a list of poses, or a 3-pose arc into a
+:class:`Plan`: a joint trajectory that starts at the given state, respects the
+arm's velocity and acceleration limits, and reports its tool path. It checks
+reachability first (the paper's step C) and refuses with the reason.
+
+Methods
+-------
+Pose goals (``method``): ``cubic``, ``quintic``, ``lspb`` (joint space) or
+``line`` (Cartesian straight line, orientation slerped).
+Path goals (``path_method``): ``via_lspb`` (Fig. 12) or ``quintic_via`` through
+the IK of every pose, ``line`` (straight lines pose to pose, stopping at each),
+or ``arc`` (3-point arc, Sec. 2.3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import geometry, trajectory
+from .kinematics import Unreachable, cartesian_to_joint
+from .kinematics.paths import check_joint_limits
+
+JOINT_METHODS = ('cubic', 'quintic', 'lspb')
+POSE_METHODS = JOINT_METHODS + ('line',)
+PATH_METHODS = ('via_lspb', 'quintic_via', 'line', 'arc')
+
+# Peak velocity and acceleration of a unit move in unit time, for sizing durations.
+_PEAKS = {'cubic': (1.5, 6.0), 'quintic': (1.875, 10.0 / np.sqrt(3.0))}
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Knobs of the planner; the node maps its ROS parameters onto these.
+
+    Attributes
+    ----------
+    method, path_method : str
+        Default methods for pose and path goals.
+    speed_scale : float
+        Fraction of the joint velocity limits used, (0, 1]; accelerations
+        scale with its square.
+    duration : float
+        Fixed duration of a pose move, s; 0 means the shortest within limits.
+    sample_period : float
+        Spacing of the trajectory points, s.
+    cartesian_speed, cartesian_accel : float
+        Initial guesses for line and arc timing, m/s and m/s^2 (stretched when
+        the joints need more time).
+    max_joint_step : float
+        Jump threshold of Cartesian paths, rad per sample.
+    """
+
+    method: str = 'quintic'
+    path_method: str = 'via_lspb'
+    speed_scale: float = 0.5
+    duration: float = 0.0
+    sample_period: float = 0.01
+    cartesian_speed: float = 0.25
+    cartesian_accel: float = 1.0
+    max_joint_step: float = 0.25
+
+    def validate(self):
+        if self.method not in POSE_METHODS:
+            raise ValueError(f'unknown method {self.method!r}; choose one of {", ".join(POSE_METHODS)}')
+        if self.path_method not in PATH_METHODS:
+            raise ValueError(f'unknown path_method {self.path_method!r}; choose one of {", ".join(PATH_METHODS)}')
+        if not 0.0 < self.speed_scale <= 1.0:
+            raise ValueError(f'speed_scale must be in (0, 1], got {self.speed_scale}')
+        for name in ('sample_period', 'cartesian_speed', 'cartesian_accel', 'max_joint_step'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f'{name} must be > 0, got {value}')
+        if not (np.isfinite(self.duration) and self.duration >= 0):
+            raise ValueError(f'duration must be >= 0 s (0: shortest within limits), got {self.duration}')
+        return self
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One part of a plan, for reports: its label, method, start time and duration (s)."""
+
+    label: str
+    method: str
+    start: float
+    duration: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned motion.
+
+    Attributes
+    ----------
+    trajectory : PiecewisePolynomial
+        Joint trajectory from the start state, time 0 = now.
+    method : str
+    segments : list of Segment
+    cartesian : list of (int, CartesianPath)
+        The Cartesian parts (lines, arcs): segment index and requested path, for
+        measuring the tool's deviation.
+    joint_names : tuple of str
+        Joint order of the trajectory when it is not just the arm's (the pick
+        cycle appends the gripper).
+    extra : dict
+        Event times and figures for reports (grasp and release times).
+    """
+
+    trajectory: trajectory.PiecewisePolynomial
+    method: str
+    segments: list = field(default_factory=list)
+    cartesian: list = field(default_factory=list)
+    joint_names: tuple = ()
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def duration(self):
+        return self.trajectory.duration
+
+    def samples(self, period):
+        """``t, q, qd, qdd`` every ``period`` s, the last point exactly at the end."""
+        n = int(np.floor(self.duration / period + 1e-9))
+        t = np.arange(n + 1) * period
+        if self.duration - t[-1] > 1e-9:
+            t = np.append(t, self.duration)
+        return (t, *self.trajectory.sample(t))
+
+    def summary(self, period=0.01):
+        """Duration, peak |velocity| and |acceleration| per joint."""
+        _, _, qd, qdd = self.samples(period / 4)
+        return {'method': self.method, 'duration': self.duration,
+                'peak_velocity': np.abs(qd).max(axis=0), 'peak_acceleration': np.abs(qdd).max(axis=0)}
+
+
+class Planner:
+    """Plans for one arm; see the module docstring for the methods."""
+
+    def __init__(self, arm, settings=PlannerSettings()):
+        self.arm = arm
+        self.settings = settings.validate()
+
+    def with_settings(self, **changes):
+        return Planner(self.arm, replace(self.settings, **changes))
+
+    # -- limits and durations -----------------------------------------------------
+    @property
+    def _vmax(self):
+        v = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
+        return v * self.settings.speed_scale
+
+    @property
+    def _amax(self):
+        a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
+        return a * self.settings.speed_scale ** 2
+
+    def shortest_duration(self, q0, qf, method):
+        """The shortest time in which every joint makes its move within the scaled limits, s."""
+        h = np.abs(np.asarray(qf, float) - np.asarray(q0, float))
+        v, a = self._vmax, self._amax
+        if method == 'lspb':
+            cruise = h > v**2 / a
+            t = np.where(cruise, h / v + v / a, 2.0 * np.sqrt(h / a))
+        else:
+            kv, ka = _PEAKS[method]
+            t = np.maximum(kv * h / v, np.sqrt(ka * h / a))
+        return max(float(t.max()), self.settings.sample_period)
+
+    def _check(self, traj, label):
+        t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
+        q, qd, qdd = traj.sample(t)
+        try:
+            check_joint_limits(self.arm, t, q, qd, qdd, slack=1e-6)
+        except Unreachable as exc:
+            raise Unreachable(f'{label}: {exc}') from None
+
+    # -- the start ----------------------------------------------------------------------
+    def _from_rest(self, start):
+        """A braking segment when the start state moves (None at rest), and the rest state."""
+        q, qd, qdd = (np.asarray(x, float) for x in start)
+        if np.abs(qd).max() < 1e-4 and np.abs(qdd).max() < 1e-3:
+            return None, q
+        stop = trajectory.brake(q, qd, qdd, self.arm.max_acceleration)
+        return stop, stop.end_state()[0]
+
+    def _join(self, parts, method, cartesian=()):
+        """Concatenate (label, method, traj) parts into a Plan with its segment table."""
+        segments, t = [], 0.0
+        for label, m, traj in parts:
+            segments.append(Segment(label, m, t, traj.duration))
+            t += traj.duration
+        whole = trajectory.concatenate([p[2] for p in parts])
+        return Plan(whole, method, segments, list(cartesian), self.arm.joint_names)
+
+    # -- pose goals -----------------------------------------------------------------------
+    def joint_move(self, q0, qf, method, duration=None, v0=None, a0=None):
+        """A joint-space move between configurations within the limits."""
+        if method not in JOINT_METHODS:
+            raise ValueError(f'unknown joint method {method!r}; choose one of {", ".join(JOINT_METHODS)}')
+        T = duration or self.settings.duration or self.shortest_duration(q0, qf, method)
+        if method == 'cubic':
+            traj = trajectory.cubic(q0, qf, T, 0.0 if v0 is None else v0)
+        elif method == 'quintic':
+            traj = trajectory.quintic(q0, qf, T, 0.0 if v0 is None else v0, 0.0,
+                                      0.0 if a0 is None else a0)
+        else:
+            accel = np.maximum(self._amax, trajectory.min_lspb_accel(q0, qf, T) * (1 + 1e-9))
+            traj = trajectory.lspb(q0, qf, T, accel)
+        self._check(traj, f'{method} move')
+        return traj
+
+    def plan_pose(self, start, T_goal, method=None):
+        """Move the tool to ``T_goal`` (4x4 in the base frame) from ``start = (q, qd, qdd)``."""
+        method = method or self.settings.method
+        if method not in POSE_METHODS:
+            raise ValueError(f'unknown method {method!r}; choose one of {", ".join(POSE_METHODS)}')
+        q, qd, qdd = (np.asarray(x, float) for x in start)
+        if method == 'line':
+            stop, q_rest = self._from_rest(start)
+            traj, path = self.line(q_rest, self.arm.fk(q_rest), T_goal)
+            parts = ([('brake', 'quintic', stop)] if stop is not None else []) + [('line', 'line', traj)]
+            cart = [(len(parts) - 1, path)]
+            return self._join(parts, 'line', cart)
+        q_goal = self.arm.check_reachable(T_goal, seed=q)
+        if method in ('cubic', 'quintic'):
+            traj = self.joint_move(q, q_goal, method, v0=qd, a0=qdd if method == 'quintic' else None)
+            return self._join([('move', method, traj)], method)
+        stop, q_rest = self._from_rest(start)
+        parts = ([('brake', 'quintic', stop)] if stop is not None else [])
+        parts.append(('move', method, self.joint_move(q_rest, q_goal, method)))
+        return self._join(parts, method)
+
+    # -- Cartesian lines and arcs ----------------------------------------------------------
+    def _timed_cartesian(self, curve, q0, orientations, keys=None):
+        """Time a curve: start from the Cartesian guess, stretch until the joints keep their limits."""
+        s = self.settings
+        length = curve.length
+        guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
+        T = s.duration or guess
+        for _ in range(6):
+            path = geometry.CartesianPath.timed(curve, T, 'quintic', orientations=orientations, keys=keys)
+            jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
+                                    check_limits=False)
+            over = max(float(np.max(jp.peak_velocity / self._vmax)),
+                       float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
+            if over <= 1.0:
+                t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
+                check_joint_limits(self.arm, t, *jp.trajectory.sample(t))
+                return jp.trajectory, path
+            if s.duration:
+                raise Unreachable(f'the path needs {over:.2f} times the allowed joint speed in the '
+                                  f'fixed duration {s.duration} s')
+            T *= over * 1.05
+        raise Unreachable('could not time the Cartesian path within the joint limits')
+
+    def line(self, q0, T_start, T_goal):
+        """Straight tool line from ``T_start`` to ``T_goal`` with slerped orientation."""
+        self.arm.check_reachable(T_goal, seed=q0)
+        line = geometry.Line(T_start[:3, 3], T_goal[:3, 3])
+        rots = Rotation.from_matrix(np.stack([T_start[:3, :3], T_goal[:3, :3]]))
+        if self.arm.dof < 6:
+            rots = None
+        return self._timed_cartesian(line, q0, rots)
+
+    def arc(self, q0, T1, T2, T3):
+        """Tool arc from ``T1`` (the current pose) through ``T2`` to ``T3`` (Sec. 2.3)."""
+        for T in (T2, T3):
+            self.arm.check_reachable(T, seed=q0)
+        curve = geometry.Arc.through(T1[:3, 3], T2[:3, 3], T3[:3, 3])
+        rots = None
+        keys = None
+        if self.arm.dof >= 6:
+            rots = Rotation.from_matrix(np.stack([T1[:3, :3], T2[:3, :3], T3[:3, :3]]))
+            # The key of p2 is its arc-length fraction along the arc.
+            p = curve.points(2001)
+            keys = [0.0, float(np.argmin(np.linalg.norm(p - T2[:3, 3], axis=1)) / 2000), 1.0]
+            keys[1] = min(max(keys[1], 1e-3), 1 - 1e-3)
+        return self._timed_cartesian(curve, q0, rots, keys)
+
+    # -- path goals -------------------------------------------------------------------------
+    def plan_path(self, start, poses, method=None):
+        """Pass through ``poses`` (list of 4x4) from ``start = (q, qd, qdd)``."""
+        method = method or self.settings.path_method
+        if method not in PATH_METHODS:
+            raise ValueError(f'unknown path method {method!r}; choose one of {", ".join(PATH_METHODS)}')
+        poses = list(poses)
+        if not poses:
+            raise ValueError('the path has no poses')
+        stop, q = self._from_rest(start)
+        parts = [('brake', 'quintic', stop)] if stop is not None else []
+        cart = []
+        if method in ('via_lspb', 'quintic_via'):
+            qs = [q]
+            for i, T in enumerate(poses):
+                try:
+                    qs.append(self.arm.check_reachable(T, seed=qs[-1]))
+                except Unreachable as exc:
+                    raise Unreachable(f'pose {i}: {exc}') from None
+            parts.append(('via points', method, self._via(np.array(qs), method)))
+        elif method == 'line':
+            T_prev = self.arm.fk(q)
+            for i, T in enumerate(poses):
+                try:
+                    traj, path = self.line(q, T_prev, T)
+                except Unreachable as exc:
+                    raise Unreachable(f'line to pose {i}: {exc}') from None
+                parts.append((f'line {i}', 'line', traj))
+                cart.append((len(parts) - 1, path))
+                q, T_prev = traj.end_state()[0], T
+        else:
+            if len(poses) not in (2, 3):
+                raise ValueError(f'an arc needs 2 poses (through, end; it starts at the tool) or 3 '
+                                 f'(start, through, end), got {len(poses)}')
+            if len(poses) == 3:
+                q_first = self.arm.check_reachable(poses[0], seed=q)
+                parts.append(('to arc start', 'quintic', self.joint_move(q, q_first, 'quintic')))
+                q = q_first
+            T1 = self.arm.fk(q)
+            traj, path = self.arc(q, T1, poses[-2], poses[-1])
+            parts.append(('arc', 'arc', traj))
+            cart.append((len(parts) - 1, path))
+        return self._join(parts, method, cart)
+
+    def _via(self, qs, method):
+        """Joint via points with per-segment durations from the limits, stretched until feasible."""
+        durations = np.array([self.shortest_duration(a, b, 'lspb' if method == 'via_lspb' else 'quintic')
+                              for a, b in zip(qs[:-1], qs[1:])])
+        durations = np.maximum(durations, 2 * self.settings.sample_period)
+        last = None
+        for _ in range(8):
+            try:
+                if method == 'via_lspb':
+                    traj = trajectory.via_lspb(qs, durations, self._amax)
+                else:
+                    traj = trajectory.quintic_via(qs, durations)
+                self._check(traj, method)
+                return traj
+            except ValueError as exc:       # blends do not fit, or a limit is broken: slow down
+                last = exc
+                durations = durations * 1.25
+        raise Unreachable(f'{method}: no timing within the joint limits ({last})')

@@ -1,0 +1,110 @@
+"""Plumbing shared by the three nodes: start/stop, status messages, joint states.
+
+This is ROS glue (it imports rclpy), kept out of the pure core.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+
+
+def run_node(make_node, args=None):
+    """Init, build the node, spin, and exit 0 without a traceback on SIGINT/SIGTERM.
+
+    rclpy's own signal handling can race with a multi-threaded executor at
+    shutdown (an RCLError from a wait set, or a spin that never wakes), so the
+    signals only set a flag here and the main thread spins in short slices.
+    """
+    stop = threading.Event()
+
+    def on_signal(signum, frame):
+        stop.set()
+
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    node = executor = None
+    try:
+        try:
+            node = make_node()
+        except (ValueError, FileNotFoundError) as exc:
+            # A bad parameter or file: say what, exit non-zero, no traceback.
+            print(f'{sys.argv[0]}: {exc}', file=sys.stderr)
+            return 2
+        # One executor thread: rclpy's multi-threaded executor costs far more per
+        # callback, and each node's real-time loop runs in a thread of its own.
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, 'close', None)
+            if close:
+                close()
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    return 0
+
+
+def status(name, level, message, **values):
+    """A DiagnosticStatus with key/value pairs (values formatted as text)."""
+    msg = DiagnosticStatus()
+    msg.level = level
+    msg.name = name
+    msg.message = message
+    msg.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()]
+    return msg
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return '[' + ', '.join(_fmt(float(x)) if isinstance(x, (float, np.floating)) else str(x)
+                               for x in v) + ']'
+    return str(v)
+
+
+def status_values(msg):
+    """The key/value pairs of a DiagnosticStatus as a dict of strings."""
+    return {kv.key: kv.value for kv in msg.values}
+
+
+def joint_state(names, stamp, position, velocity=None, effort=None):
+    msg = JointState()
+    msg.header.stamp = stamp
+    msg.name = list(names)
+    msg.position = [float(x) for x in position]
+    if velocity is not None:
+        msg.velocity = [float(x) for x in velocity]
+    if effort is not None:
+        msg.effort = [float(x) for x in effort]
+    return msg
+
+
+def reorder(msg_names, values, names, what):
+    """Values given in ``msg_names`` order, in ``names`` order; ValueError if any is missing."""
+    index = {n: i for i, n in enumerate(msg_names)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise ValueError(f'{what} lacks joints {missing}')
+    values = np.asarray(values, dtype=float)
+    return values[..., [index[n] for n in names]]

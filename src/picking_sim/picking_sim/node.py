@@ -1,0 +1,134 @@
+"""``picking-sim``: the kinematic arm simulator node (ROS shell around picking_sim.servo).
+
+Subscribes ``joint_commands`` (sensor_msgs/JointState: position, velocity, and
+acceleration feedforward in ``effort``), runs the servo loop at ``servo_rate``
+in a thread of its own with absolute deadlines, and publishes ``joint_states``
+at ``publish_rate`` and the URDF on ``robot_description`` (transient local),
+like a real arm driver.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from picking_planner.kinematics import ArmModel
+from picking_planner.resources import default_urdf
+from picking_planner.ros_common import joint_state, reorder, run_node
+
+from .servo import Servo, ServoParams
+
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class SimNode(Node):
+    """The simulated arm: servo loop thread + ROS interface."""
+
+    def __init__(self, **kwargs):
+        super().__init__('picking_sim', **kwargs)
+        p = self._declare_parameters()
+        self.arm = ArmModel.from_urdf(p['urdf_path'] or default_urdf())
+        self.names = list(self.arm.all_joint_names)
+        lower, upper, max_velocity, _ = self.arm.all_limits
+        n = len(self.names)
+        q0 = np.array(p['initial_positions'] or np.clip(np.zeros(n), lower, upper), dtype=float)
+        if q0.shape != (n,) or not np.all(np.isfinite(q0)):
+            raise ValueError(f'initial_positions must be {n} finite values, for {self.names}')
+        if np.any(q0 < lower) or np.any(q0 > upper):
+            raise ValueError(f'initial_positions {q0.tolist()} are outside the joint limits')
+        if not (p['servo_rate'] > 0 and p['publish_rate'] > 0 and p['publish_rate'] <= p['servo_rate']):
+            raise ValueError('servo_rate and publish_rate must be > 0 and publish_rate <= servo_rate')
+        params = ServoParams(bandwidth=p['servo.bandwidth'], damping=p['servo.damping'],
+                             integral=p['servo.integral'], inertia=p['servo.inertia'],
+                             friction=p['servo.friction'], max_torque=p['servo.max_torque'],
+                             max_velocity=max_velocity)
+        self.servo = Servo(q0, dt=1.0 / p['servo_rate'], params=params,
+                           command_timeout=p['command_timeout'])
+        self.noise_std = float(p['noise_std'])
+        self.rng = np.random.default_rng()
+        self.publish_every = max(1, int(round(p['servo_rate'] / p['publish_rate'])))
+        self.lock = threading.Lock()
+
+        self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
+        self.pub_description = self.create_publisher(String, 'robot_description', LATCHED)
+        self.pub_description.publish(String(data=self.arm.urdf))
+        self.create_subscription(JointState, 'joint_commands', self._on_command, qos_profile_sensor_data)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name='servo', daemon=True)
+        self._thread.start()
+        self.get_logger().info(
+            f'simulating {self.arm.name} ({n} joints) at {p["servo_rate"]:g} Hz, '
+            f'publishing joint_states at {p["publish_rate"]:g} Hz from {np.round(q0, 4).tolist()}')
+
+    def _declare_parameters(self):
+        defaults = {
+            'urdf_path': '', 'publish_rate': 100.0, 'servo_rate': 1000.0,
+            'noise_std': 0.0, 'command_timeout': 0.05,
+            'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
+            'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
+        }
+        out = {}
+        for name, value in defaults.items():
+            out[name] = self.declare_parameter(name, value).value
+        # No default: unset means "all zeros".
+        out['initial_positions'] = list(
+            self.declare_parameter('initial_positions', Parameter.Type.DOUBLE_ARRAY).value or [])
+        return out
+
+    def _on_command(self, msg):
+        try:
+            q = reorder(msg.name, msg.position, self.names, 'joint_commands position')
+            qd = reorder(msg.name, msg.velocity, self.names, 'joint_commands velocity') \
+                if len(msg.velocity) else None
+            qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands effort') \
+                if len(msg.effort) else None
+            with self.lock:
+                self.servo.command(q, qd, qdd)
+        except (ValueError, IndexError) as exc:
+            self.get_logger().warn(f'ignoring joint_commands: {exc}', throttle_duration_sec=2.0)
+
+    def _loop(self):
+        """Fixed-step servo at absolute deadlines; catches up when the OS wakes it late."""
+        dt = self.servo.dt
+        start = time.monotonic()
+        done = 0
+        while not self._stop.is_set():
+            due = int((time.monotonic() - start) / dt) + 1 - done
+            if due > 0:
+                with self.lock:
+                    for _ in range(due):
+                        self.servo.step()
+                        done += 1
+                        if done % self.publish_every == 0:
+                            self._publish()
+            next_deadline = start + (done + 1) * dt
+            delay = next_deadline - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    def _publish(self):
+        q = self.servo.q
+        if self.noise_std > 0:
+            q = q + self.rng.normal(0.0, self.noise_std, q.shape)
+        self.pub_states.publish(joint_state(self.names, self.get_clock().now().to_msg(), q, self.servo.qd,
+                                            self.servo.torque))
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+
+
+def main(args=None):
+    return run_node(SimNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

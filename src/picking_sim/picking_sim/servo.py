@@ -1,0 +1,147 @@
+"""The angular-position servo loop of the paper's Fig. 1, one instance per arm (pure core).
+
+Per joint: a PID on angle with velocity and acceleration feedforward drives a
+motor model (inertia, viscous friction, torque and velocity saturation),
+integrated with a fixed step (semi-implicit Euler). Everything is vectorised
+over joints; the state is two numpy vectors.
+
+Units: rad, rad/s, rad/s^2 for the joints; torques are per unit inertia
+scaled by ``inertia`` (N m with inertia in kg m^2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ServoParams:
+    """Servo and motor parameters, one value or one per joint.
+
+    Attributes
+    ----------
+    bandwidth : float
+        Closed-loop natural frequency of the position loop, Hz.
+    damping : float
+        Damping ratio of the position loop.
+    integral : float
+        Integral gain relative to the proportional one, 1/s.
+    inertia : float
+        Joint inertia seen by the motor, kg m^2.
+    friction : float
+        Viscous friction, N m s/rad.
+    max_torque : float
+        Torque saturation, N m.
+    max_velocity : float or array
+        Velocity saturation, rad/s (usually the URDF limits).
+    """
+
+    bandwidth: float = 25.0
+    damping: float = 1.0
+    integral: float = 2.0
+    inertia: float = 0.5
+    friction: float = 0.8
+    max_torque: float = 400.0
+    max_velocity: object = np.inf
+
+    def validate(self):
+        for name in ('bandwidth', 'damping', 'inertia', 'max_torque'):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if not np.all(np.isfinite(value)) or np.any(value <= 0):
+                raise ValueError(f'servo {name} must be finite and > 0, got {value}')
+        for name in ('integral', 'friction'):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if not np.all(np.isfinite(value)) or np.any(value < 0):
+                raise ValueError(f'servo {name} must be finite and >= 0, got {value}')
+        if np.any(np.asarray(self.max_velocity, dtype=float) <= 0):
+            raise ValueError('servo max_velocity must be > 0')
+
+
+@dataclass
+class Servo:
+    """Fixed-step servo simulation of ``n`` joints.
+
+    Parameters
+    ----------
+    q0 : array_like, shape (n,)
+        Initial joint positions, rad.
+    dt : float
+        Servo period, s (1 ms at the default 1 kHz).
+    params : ServoParams
+    command_timeout : float
+        After this long without a command the reference stops extrapolating
+        and holds its position, s: a silent controller never runs the arm away.
+    """
+
+    q0: object
+    dt: float = 1e-3
+    params: ServoParams = field(default_factory=ServoParams)
+    command_timeout: float = 0.05
+
+    def __post_init__(self):
+        self.params.validate()
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f'servo period must be > 0 s, got {self.dt}')
+        self.q = np.array(self.q0, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(self.q)):
+            raise ValueError('initial positions must be finite')
+        n = self.q.size
+        p = self.params
+        wn = 2.0 * np.pi * np.broadcast_to(np.asarray(p.bandwidth, float), (n,))
+        self.inertia = np.broadcast_to(np.asarray(p.inertia, float), (n,)).copy()
+        self.kp = self.inertia * wn**2
+        self.kd = self.inertia * 2.0 * np.broadcast_to(np.asarray(p.damping, float), (n,)) * wn
+        self.ki = self.kp * np.broadcast_to(np.asarray(p.integral, float), (n,))
+        self.friction = np.broadcast_to(np.asarray(p.friction, float), (n,)).copy()
+        self.max_torque = np.broadcast_to(np.asarray(p.max_torque, float), (n,)).copy()
+        self.max_velocity = np.broadcast_to(np.asarray(p.max_velocity, float), (n,)).copy()
+        self.qd = np.zeros(n)
+        self.integral = np.zeros(n)
+        self.torque = np.zeros(n)
+        # The reference held between commands: hold the start position.
+        self.ref_q, self.ref_qd, self.ref_qdd = self.q.copy(), np.zeros(n), np.zeros(n)
+        self._since_command = 0
+        self._hold_after = max(1, int(round(self.command_timeout / self.dt)))
+
+    @property
+    def n_joints(self):
+        return self.q.size
+
+    def command(self, q, qd=None, qdd=None):
+        """Set the reference (position, and optionally velocity and acceleration feedforward)."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != self.q.shape or not np.all(np.isfinite(q)):
+            raise ValueError(f'reference must be {self.n_joints} finite positions')
+        self.ref_q = q.copy()
+        self.ref_qd = np.zeros_like(q) if qd is None else np.asarray(qd, dtype=float).copy()
+        self.ref_qdd = np.zeros_like(q) if qdd is None else np.asarray(qdd, dtype=float).copy()
+        self._since_command = 0
+
+    def step(self, steps=1):
+        """Advance ``steps`` servo periods; between commands the reference moves on
+        with its velocity and acceleration (so a late command does not stall it)."""
+        dt = self.dt
+        for _ in range(int(steps)):
+            e = self.ref_q - self.q
+            self.integral += e * dt
+            # Anti-windup: the integral never asks for more than the torque limit.
+            limit = self.max_torque / np.maximum(self.ki, 1e-12)
+            np.clip(self.integral, -limit, limit, out=self.integral)
+            tau = (self.kp * e + self.kd * (self.ref_qd - self.qd) + self.ki * self.integral
+                   + self.inertia * self.ref_qdd + self.friction * self.ref_qd)
+            np.clip(tau, -self.max_torque, self.max_torque, out=tau)
+            self.torque = tau
+            qdd = (tau - self.friction * self.qd) / self.inertia
+            self.qd += qdd * dt
+            np.clip(self.qd, -self.max_velocity, self.max_velocity, out=self.qd)
+            self.q += self.qd * dt
+            self._since_command += 1
+            if self._since_command < self._hold_after:
+                self.ref_q = self.ref_q + self.ref_qd * dt + 0.5 * self.ref_qdd * dt * dt
+                self.ref_qd = self.ref_qd + self.ref_qdd * dt
+            elif self._since_command == self._hold_after:
+                self.ref_qd = np.zeros_like(self.ref_qd)
+                self.ref_qdd = np.zeros_like(self.ref_qdd)
+        return self.q, self.qd

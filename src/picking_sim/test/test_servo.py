@@ -1,0 +1,67 @@
+"""The servo loop of Fig. 1: tracking, holding, saturation, and the silent-controller guard."""
+
+import numpy as np
+import pytest
+
+from picking_planner import trajectory
+from picking_sim.servo import Servo, ServoParams
+
+
+def run(servo, traj, t_end):
+    t = np.arange(0.0, t_end, servo.dt)
+    q, qd, qdd = traj.sample(t)
+    errors = []
+    for i in range(len(t)):
+        servo.command(q[i], qd[i], qdd[i])
+        servo.step()
+        errors.append(np.abs(servo.q - traj.sample(t[i] + servo.dt)[0][0]))
+    return np.array(errors)
+
+
+def test_fig1_loop_tracks_a_quintic_with_feedforward_within_a_hundredth_of_a_degree():
+    servo = Servo(np.zeros(3), params=ServoParams(max_velocity=3.0))
+    traj = trajectory.quintic(np.zeros(3), [1.0, -0.6, 0.4], 2.0)
+    errors = run(servo, traj, 2.5)
+    assert np.degrees(errors.max()) < 0.01
+    assert np.degrees(errors[-1].max()) < 0.001
+
+
+def test_holds_its_position_without_commands():
+    servo = Servo([0.3, -0.2])
+    servo.step(2000)
+    assert servo.q == pytest.approx([0.3, -0.2], abs=1e-12)
+
+
+def test_reference_stops_moving_when_commands_stop():
+    servo = Servo([0.0], dt=1e-3, command_timeout=0.05)
+    servo.command([0.0], [1.0], [0.0])
+    servo.step(1000)                                 # a full second without another command
+    assert servo.ref_qd[0] == 0.0
+    assert 0.04 < servo.ref_q[0] < 0.06              # moved on for 50 ms only
+    assert abs(servo.q[0] - servo.ref_q[0]) < 1e-3
+
+
+def test_velocity_and_torque_saturate():
+    servo = Servo([0.0], params=ServoParams(max_velocity=0.5, max_torque=5.0))
+    servo.command([2.0])
+    qd_seen = []
+    for _ in range(3000):
+        servo.step()
+        qd_seen.append(servo.qd[0])
+        assert abs(servo.torque[0]) <= 5.0 + 1e-12
+    assert max(qd_seen) <= 0.5 + 1e-12
+    assert 1.0 < servo.q[0] < 1.5 + 1e-9            # 3 s at no more than 0.5 rad/s
+
+
+@pytest.mark.parametrize('field, value', [('bandwidth', 0.0), ('inertia', -1.0), ('friction', np.nan)])
+def test_bad_parameters_are_refused(field, value):
+    with pytest.raises(ValueError, match=field):
+        Servo([0.0], params=ServoParams(**{field: value}))
+
+
+def test_bad_commands_are_refused():
+    servo = Servo([0.0, 0.0])
+    with pytest.raises(ValueError):
+        servo.command([np.nan, 0.0])
+    with pytest.raises(ValueError):
+        servo.command([0.0])

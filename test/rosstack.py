@@ -1,0 +1,182 @@
+"""Helpers for system tests: start the three nodes as processes, talk to them over ROS.
+
+Every process inherits ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and this test
+run's ROS_DOMAIN_ID (set in conftest.py), and is stopped by its process id.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+BIN = Path(sys.executable).parent
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
+              'wrist_3_joint']
+HOME = [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]
+DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat().tolist()
+
+
+class Process:
+    """One node as a child process, with its output kept for the failure message."""
+
+    def __init__(self, name, args, log_dir):
+        self.name = name
+        self.log = open(Path(log_dir) / f'{name}.log', 'w')
+        self.proc = subprocess.Popen([str(BIN / name), *args], stdout=self.log, stderr=subprocess.STDOUT,
+                                     env=os.environ.copy())
+
+    @property
+    def pid(self):
+        return self.proc.pid
+
+    def stop(self, sig=signal.SIGINT, timeout=10.0):
+        """Signal by pid and wait; returns the exit code (None if it had to be killed)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                self.log.close()
+                return None
+        self.log.close()
+        return self.proc.returncode
+
+    def output(self):
+        if not self.log.closed:
+            self.log.flush()
+        return Path(self.log.name).read_text()
+
+
+class Stack:
+    """Simulator, controller and planner in one namespace."""
+
+    def __init__(self, ns, log_dir, sim_args=(), controller_args=(), planner_args=()):
+        self.ns = ns
+        self.log_dir = Path(log_dir) / ns.strip('/')
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        remap = ['-r', f'__ns:={ns}']
+        home = '[' + ','.join(str(v) for v in HOME + [0.09]) + ']'
+        self.sim = Process('picking-sim', ['--ros-args', *remap, '-p', f'initial_positions:={home}', *sim_args],
+                           self.log_dir)
+        self.controller = Process('picking-controller', ['--ros-args', *remap, *controller_args], self.log_dir)
+        self.planner = Process('picking-planner', ['--ros-args', *remap, *planner_args], self.log_dir)
+
+    def restart_sim(self, sim_args=()):
+        home = '[' + ','.join(str(v) for v in HOME + [0.09]) + ']'
+        self.sim = Process('picking-sim', ['--ros-args', '-r', f'__ns:={self.ns}', '-p',
+                                           f'initial_positions:={home}', *sim_args], self.log_dir)
+
+    def stop(self):
+        return {p.name: p.stop() for p in (self.planner, self.controller, self.sim)}
+
+
+class Client(Node):
+    """A test's eyes and hands in one namespace: records every message it sees."""
+
+    def __init__(self, ns):
+        super().__init__(f'test_client_{os.getpid()}_{abs(hash(ns)) % 10000}', namespace=ns)
+        self.lock = threading.Lock()
+        self.states, self.commands, self.planner_status, self.controller_status = [], [], [], []
+        self.create_subscription(JointState, 'joint_states', self._rec(self.states), RELIABLE)
+        self.create_subscription(JointState, 'joint_commands', self._rec(self.commands), qos_profile_sensor_data)
+        self.create_subscription(DiagnosticStatus, 'planner_status', self._rec(self.planner_status), RELIABLE)
+        self.create_subscription(DiagnosticStatus, 'controller_status', self._rec(self.controller_status),
+                                 RELIABLE)
+        self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', RELIABLE)
+        self.pub_path = self.create_publisher(PoseArray, 'goal_path', RELIABLE)
+        self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', RELIABLE)
+        self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
+        self._exec = SingleThreadedExecutor()
+        self._exec.add_node(self)
+        self._thread = threading.Thread(target=self._exec.spin, daemon=True)
+        self._thread.start()
+
+    def _rec(self, store):
+        def callback(msg):
+            with self.lock:
+                store.append((time.monotonic(), msg))
+        return callback
+
+    def wait_for(self, predicate, timeout=20.0, what='condition'):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self.lock:
+                result = predicate()
+            if result:
+                return result
+            time.sleep(0.02)
+        raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+
+    def wait_ready(self, timeout=30.0):
+        """Until joint_states flow and the planner and controller listen."""
+        self.wait_for(lambda: len(self.states) > 5, timeout, 'joint_states')
+        self.wait_for(lambda: self.pub_pose.get_subscription_count() > 0
+                      and self.pub_traj.get_subscription_count() > 0, timeout, 'planner and controller')
+        self.wait_for(lambda: any('feedback received' in m.message for _, m in self.controller_status)
+                      or len(self.commands) > 5, timeout, 'the controller to hold')
+
+    def mark(self):
+        with self.lock:
+            return {'states': len(self.states), 'commands': len(self.commands),
+                    'planner': len(self.planner_status), 'controller': len(self.controller_status)}
+
+    def planner_answer(self, since, timeout=20.0):
+        return self.wait_for(lambda: self.planner_status[since['planner']:] and
+                             self.planner_status[since['planner']][1], timeout, 'planner_status')
+
+    def controller_event(self, since, text, timeout=30.0):
+        def find():
+            for _, m in self.controller_status[since['controller']:]:
+                if text in m.message:
+                    return m
+            return None
+        return self.wait_for(find, timeout, f'controller_status "{text}"')
+
+    def last_positions(self):
+        with self.lock:
+            msg = self.states[-1][1]
+        names = list(msg.name)
+        return np.array([msg.position[names.index(n)] for n in ARM_JOINTS])
+
+    def send_pose(self, xyz, quat=DOWN):
+        msg = PoseStamped()
+        msg.header.frame_id = 'base_link'
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.pose = make_pose(xyz, quat)
+        self.pub_pose.publish(msg)
+        return msg
+
+    def close(self):
+        self._exec.shutdown()
+        self.destroy_node()
+
+
+def make_pose(xyz, quat=DOWN):
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = map(float, xyz)
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = map(float, quat)
+    return pose
+
+
+def ensure_rclpy():
+    if not rclpy.ok():
+        rclpy.init()

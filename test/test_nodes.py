@@ -1,0 +1,210 @@
+"""System tests: simulator, controller and planner as separate processes, driven over ROS."""
+
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from picking_planner.kinematics import ArmModel
+from picking_planner.resources import default_urdf
+from rosstack import ARM_JOINTS, BIN, HOME, Client, Stack, ensure_rclpy, make_pose
+
+ARM = ArmModel.from_urdf(default_urdf())
+
+
+@pytest.fixture(scope='module')
+def arm1(tmp_path_factory):
+    ensure_rclpy()
+    stack = Stack('/sys1', tmp_path_factory.mktemp('logs'))
+    client = Client('/sys1')
+    try:
+        client.wait_ready()
+        yield stack, client
+    finally:
+        codes = stack.stop()
+        client.close()
+    assert codes == {'picking-planner': 0, 'picking-controller': 0, 'picking-sim': 0}
+
+
+def tool_position(client):
+    return ARM.fk(client.last_positions())[:3, 3]
+
+
+def reach(client, send, timeout=40.0):
+    """Send a goal; wait for the planner's OK and the controller's 'goal reached'."""
+    mark = client.mark()
+    send()
+    answer = client.planner_answer(mark)
+    assert answer.level == DiagnosticStatus.OK, answer.message
+    client.controller_event(mark, 'goal reached', timeout)
+    return answer
+
+
+def test_pose_goal_is_reached_within_1_mm(arm1):
+    _, client = arm1
+    target = [0.6, 0.1, 0.4]
+    answer = reach(client, lambda: client.send_pose(target))
+    assert 'quintic' in answer.message
+    time.sleep(0.3)
+    assert np.linalg.norm(tool_position(client) - target) < 1e-3
+
+
+def test_via_path_ends_at_its_last_pose(arm1):
+    _, client = arm1
+    poses = [[0.55, -0.1, 0.45], [0.5, -0.25, 0.5]]
+
+    def send():
+        msg = PoseArray()
+        msg.header.frame_id = 'base_link'
+        msg.poses = [make_pose(p) for p in poses]
+        client.pub_path.publish(msg)
+    answer = reach(client, send)
+    assert 'via_lspb' in answer.message
+    assert np.linalg.norm(tool_position(client) - poses[-1]) < 1e-3
+
+
+def test_arc_from_the_command_line_tool(arm1):
+    _, client = arm1
+    through, end = [0.55, -0.1, 0.5], [0.5, 0.05, 0.45]
+    done = subprocess.run([str(BIN / 'picking-goal'), 'path', '--arc', '--pose', *map(str, through),
+                           '--pose', *map(str, end), '--ros-args', '-r', '__ns:=/sys1'],
+                          capture_output=True, text=True, timeout=90)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert 'arc' in done.stdout and 'reached' in done.stdout
+    assert np.linalg.norm(tool_position(client) - end) < 1e-3
+
+
+def test_unreachable_goal_is_refused_and_the_arm_stays(arm1):
+    _, client = arm1
+    before = client.last_positions()
+    mark = client.mark()
+    client.send_pose([2.5, 0.0, 0.3])
+    answer = client.planner_answer(mark)
+    assert answer.level == DiagnosticStatus.ERROR
+    assert 'out of reach' in answer.message
+    time.sleep(0.5)
+    assert np.abs(client.last_positions() - before).max() < 1e-4
+
+
+def test_goal_in_another_frame_is_refused(arm1):
+    _, client = arm1
+    mark = client.mark()
+    goal = PoseStamped()
+    goal.header.frame_id = 'camera_link'
+    goal.pose = make_pose([0.6, 0.0, 0.4])
+    client.pub_pose.publish(goal)
+    answer = client.planner_answer(mark)
+    assert answer.level == DiagnosticStatus.ERROR and 'base frame' in answer.message
+
+
+def _trajectory(names, points):
+    msg = JointTrajectory()
+    msg.joint_names = names
+    for t, q in points:
+        p = JointTrajectoryPoint()
+        p.positions = [float(v) for v in q]
+        p.time_from_start = Duration(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)))
+        msg.points.append(p)
+    return msg
+
+
+@pytest.mark.parametrize('names, points, reason', [
+    (ARM_JOINTS[:5] + ['tail_joint'], [(1.0, HOME)], 'unknown joints'),
+    (ARM_JOINTS[:5], [(1.0, HOME[:5])], 'missing joints'),
+    (ARM_JOINTS, [], 'no points'),
+    (ARM_JOINTS, [(1.0, HOME), (1.0, HOME)], 'increase strictly'),
+    (ARM_JOINTS, [(1.0, HOME[:5] + [float('nan')])], 'finite'),
+    (ARM_JOINTS, [(1.0, [0.0, 0.2, 3.5, 0.0, 1.3, 0.0])], 'beyond its limit'),
+])
+def test_bad_trajectory_is_refused_by_the_controller(arm1, names, points, reason):
+    _, client = arm1
+    before = client.last_positions()
+    mark = client.mark()
+    client.pub_traj.publish(_trajectory(names, points))
+    event = client.controller_event(mark, 'trajectory rejected', 10.0)
+    assert event.level == DiagnosticStatus.ERROR and reason in event.message
+    time.sleep(0.3)
+    assert np.abs(client.last_positions() - before).max() < 1e-4
+
+
+def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
+    _, client = arm1
+    mark = client.mark()
+    client.send_pose([0.45, 0.35, 0.5])
+    first = client.planner_answer(mark)
+    assert first.level == DiagnosticStatus.OK
+    duration = float({kv.key: kv.value for kv in first.values}['duration'])
+    time.sleep(0.4 * duration)
+    mark2 = client.mark()
+    client.send_pose([0.6, -0.2, 0.45])
+    second = client.planner_answer(mark2)
+    assert second.level == DiagnosticStatus.OK
+    assert {kv.key: kv.value for kv in second.values}['start'] == 'reference'
+    client.controller_event(mark2, 'goal reached', 40.0)
+    with client.lock:
+        cmds = [m for _, m in client.commands[mark['commands']:]]
+    vel = np.array([m.velocity[:6] for m in cmds])
+    steps = np.abs(np.diff(vel, axis=0)).max()
+    # At most one acceleration limit's worth (12 rad/s^2) per 1 ms tick, with slack for jitter.
+    assert steps < 0.05, steps
+    assert np.abs(vel).max() > 0.05                  # it really was moving
+    assert np.linalg.norm(tool_position(client) - [0.6, -0.2, 0.45]) < 1e-3
+
+
+def test_second_arm_in_its_own_namespace(arm1, tmp_path):
+    _, client1 = arm1
+    stack2 = Stack('/sys2', tmp_path)
+    client2 = Client('/sys2')
+    try:
+        client2.wait_ready()
+        before1 = client1.last_positions()
+        reach(client2, lambda: client2.send_pose([0.5, 0.2, 0.35]))
+        assert np.linalg.norm(tool_position(client2) - [0.5, 0.2, 0.35]) < 1e-3
+        # Arm 1 saw nothing of it.
+        assert np.abs(client1.last_positions() - before1).max() < 1e-4
+        reach(client1, lambda: client1.send_pose([0.55, 0.0, 0.45]))
+    finally:
+        codes = stack2.stop()
+        client2.close()
+    assert set(codes.values()) == {0}
+
+
+def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
+    ensure_rclpy()
+    stack = Stack('/sys3', tmp_path)
+    client = Client('/sys3')
+    try:
+        client.wait_ready()
+        mark = client.mark()
+        assert stack.sim.stop() == 0
+        lost = client.controller_event(mark, 'feedback lost', 10.0)
+        assert lost.level == DiagnosticStatus.ERROR
+        refused = client.mark()
+        client.send_pose([0.6, 0.0, 0.4])
+        client.controller_event(refused, 'trajectory rejected', 10.0)
+        stack.restart_sim()
+        client.controller_event(mark, 'feedback restored', 20.0)
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+    finally:
+        codes = stack.stop()
+        client.close()
+    assert set(codes.values()) == {0}
+
+
+def test_nodes_exit_cleanly_on_sigterm(tmp_path):
+    import signal
+    stack = Stack('/sys4', tmp_path)
+    client = Client('/sys4')
+    try:
+        client.wait_ready()
+    finally:
+        codes = {p.name: p.stop(signal.SIGTERM) for p in (stack.planner, stack.controller, stack.sim)}
+        client.close()
+    for proc in (stack.planner, stack.controller, stack.sim):
+        assert codes[proc.name] == 0, proc.output()
+        assert 'Traceback' not in proc.output()
