@@ -26,8 +26,10 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 	$(BIN)/python -m pip install --quiet -r requirements.txt
 	touch $@
 
+# The pick-and-place cycle of Table 1 through the real nodes, then the paper's examples offline.
 demo: $(STAMP)
-	$(BIN)/picking-plan --paper --out out/paper
+	$(BIN)/picking-demo --out out/demo
+	$(BIN)/picking-plan --paper --out out/paper > out/paper.txt && echo "paper examples: out/paper (summary in out/paper.txt)"
 
 test: unit system
 

@@ -31,6 +31,7 @@ setup(
             'picking-plan = picking_planner.cli.plan:main',
             'picking-planner = picking_planner.node:main',
             'picking-goal = picking_planner.cli.goal:main',
+            'picking-demo = picking_planner.cli.demo:main',
             'planner = picking_planner.node:main',
         ],
     },

@@ -142,28 +142,25 @@ class PlannerNode(Node):
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
             self.reference = (q, qd, qdd, self._now(), stamp)
 
-    def start_state(self, delay=None):
+    def start_state(self, delay, reference, measured):
         """Where the plan starts: ``(q, qd, qdd), source, start time``.
 
-        While the controller publishes a fresh reference, the plan starts
-        ``start_delay`` s from now on that reference (extrapolated from its stamp),
-        and the trajectory is stamped to start then: planning and transport
-        time never make the arm jump. Otherwise it starts now from the measured
-        state, at rest (start time None: on arrival).
+        The plan starts ``delay`` s from now and the trajectory is stamped to
+        start then, so planning and transport time never make the arm jump and
+        the plan's clock is the controller's. While the controller publishes a
+        fresh reference, the start state is that reference extrapolated from
+        its stamp to the start time; otherwise the measured state, at rest.
+        ``reference`` and ``measured`` are snapshots taken when the goal came.
         """
-        timeout = self.get_parameter('reference_timeout').value
-        ref = self.reference
-        if ref is not None and self._now() - ref[3] <= timeout:
-            q, qd, qdd, _, stamp = ref
-            if delay is None:
-                delay = self.get_parameter('start_delay').value
-            t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
+        t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
+        if reference is not None:
+            q, qd, qdd, _, stamp = reference
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return (q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), 'reference', t_start
-        if self.measured is None:
+        if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
-        q = self.measured[0]
-        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', None
+        q = measured[0]
+        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start
 
     # -- goals ---------------------------------------------------------------------------
     def _check_frame(self, header):
@@ -211,11 +208,15 @@ class PlannerNode(Node):
             with self.lock:
                 self._check_frame(header)
                 delay = self.get_parameter('start_delay').value
+                ref = self.reference
+                if ref is not None and self._now() - ref[3] > self.get_parameter('reference_timeout').value:
+                    ref = None                      # no controller is publishing: start from the measurement
+                measured = self.measured
                 for _ in range(4):
-                    start, source, t_start = self.start_state(delay)
+                    start, source, t_start = self.start_state(delay, ref, measured)
                     plan = plan_fn(start)
                     # Planning must finish before the plan's start; else plan again, further ahead.
-                    if t_start is None or self.get_clock().now().nanoseconds * 1e-9 < t_start - 0.01:
+                    if self.get_clock().now().nanoseconds * 1e-9 < t_start - 0.01:
                         break
                     delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
@@ -245,13 +246,12 @@ class PlannerNode(Node):
             time.sleep(0.02)
         return True
 
-    def _publish(self, plan, t_start=None):
+    def _publish(self, plan, t_start):
         t, q, qd, qdd = plan.samples(self.planner.settings.sample_period)
         msg = JointTrajectory()
         msg.joint_names = list(plan.joint_names or self.names)
-        if t_start is not None:               # else stamp zero: start on arrival
-            msg.header.stamp.sec = int(t_start)
-            msg.header.stamp.nanosec = int((t_start - int(t_start)) * 1e9)
+        msg.header.stamp.sec = int(t_start)
+        msg.header.stamp.nanosec = int((t_start - int(t_start)) * 1e9)
         points = []
         for i in range(len(t)):
             p = JointTrajectoryPoint()

@@ -49,7 +49,7 @@ class SimNode(Node):
         params = ServoParams(bandwidth=p['servo.bandwidth'], damping=p['servo.damping'],
                              integral=p['servo.integral'], inertia=p['servo.inertia'],
                              friction=p['servo.friction'], max_torque=p['servo.max_torque'],
-                             max_velocity=max_velocity)
+                             max_velocity=max_velocity * p['servo.velocity_margin'])
         self.servo = Servo(q0, dt=1.0 / p['servo_rate'], params=params,
                            command_timeout=p['command_timeout'])
         self.noise_std = float(p['noise_std'])
@@ -74,6 +74,7 @@ class SimNode(Node):
             'noise_std': 0.0, 'command_timeout': 0.05,
             'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
             'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
+            'servo.velocity_margin': 1.2,
         }
         out = {}
         for name, value in defaults.items():

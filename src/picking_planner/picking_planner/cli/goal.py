@@ -85,10 +85,10 @@ class GoalClient(Node):
     def __init__(self):
         super().__init__(f'picking_goal_{os.getpid()}')
         self.planner_status, self.controller_status = [], []
-        self.create_subscription(DiagnosticStatus, 'planner_status',
-                                 lambda m: self.planner_status.append(m), RELIABLE)
-        self.create_subscription(DiagnosticStatus, 'controller_status',
-                                 lambda m: self.controller_status.append(m), RELIABLE)
+        self.sub_planner = self.create_subscription(DiagnosticStatus, 'planner_status',
+                                                    lambda m: self.planner_status.append(m), RELIABLE)
+        self.sub_controller = self.create_subscription(DiagnosticStatus, 'controller_status',
+                                                       lambda m: self.controller_status.append(m), RELIABLE)
 
     def spin_until(self, predicate, timeout):
         end = time.monotonic() + timeout
@@ -129,9 +129,16 @@ def run(args, node):
             print(f'picking-goal: the planner refused {name}={args.method!r}: {reason}', file=sys.stderr)
             return EXIT_REFUSED
 
-    if not node.spin_until(lambda: pub.get_subscription_count() > 0, args.timeout):
+    if not node.spin_until(lambda: pub.get_subscription_count() > 0
+                           and node.sub_planner.get_publisher_count() > 0, args.timeout):
         print(f'picking-goal: nobody subscribes to {node.resolve_topic_name(topic)} '
               '(is picking-planner running in this namespace?)', file=sys.stderr)
+        return EXIT_TIMEOUT
+    # Hear the controller before moving: a status sent before discovery completes is lost.
+    if not args.no_wait and not node.spin_until(lambda: node.sub_controller.get_publisher_count() > 0,
+                                                args.timeout):
+        print('picking-goal: no controller publishes controller_status (is picking-controller running?)',
+              file=sys.stderr)
         return EXIT_TIMEOUT
     stamp = node.get_clock().now().to_msg()
     key = f'{stamp.sec}.{stamp.nanosec:09d}'

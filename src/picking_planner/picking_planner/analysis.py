@@ -1,0 +1,60 @@
+"""Measuring a run: tracking error, tool deviation from lines and arcs, peaks, jerk (pure core)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import geometry
+
+
+def tracking_error(t_plan, q_plan, t_meas, q_meas):
+    """Measured minus planned positions at the measurement times, (N, n); NaN outside the plan."""
+    err = np.full(q_meas.shape, np.nan)
+    inside = (t_meas >= t_plan[0]) & (t_meas <= t_plan[-1])
+    for j in range(q_meas.shape[1]):
+        err[inside, j] = q_meas[inside, j] - np.interp(t_meas[inside], t_plan, q_plan[:, j])
+    return err
+
+
+def distance_to_segment(p, a, b):
+    """Distance of points ``p`` (N, 3) from the segment ``a``-``b``, m."""
+    ab = b - a
+    denom = float(ab @ ab)
+    w = np.zeros(len(p)) if denom == 0 else np.clip((p - a) @ ab / denom, 0.0, 1.0)
+    return np.linalg.norm(p - (a + w[:, None] * ab), axis=1)
+
+
+def distance_to_arc_circle(p, arc):
+    """Distance of points ``p`` (N, 3) from the circle that carries ``arc``, m."""
+    d = p - arc.center
+    off_plane = d @ arc.normal
+    in_plane = np.linalg.norm(d - off_plane[:, None] * arc.normal, axis=1)
+    return np.hypot(in_plane - arc.radius, off_plane)
+
+
+def cartesian_deviation(kind, tool_start, tool_mid, tool_end, tool_measured):
+    """Largest distance of measured tool points from the requested line or arc, m."""
+    if kind == 'arc':
+        try:
+            arc = geometry.Arc.through(tool_start, tool_mid, tool_end)
+        except ValueError:
+            return float(distance_to_segment(tool_measured, tool_start, tool_end).max())
+        return float(distance_to_arc_circle(tool_measured, arc).max())
+    return float(distance_to_segment(tool_measured, tool_start, tool_end).max())
+
+
+def peak_jerk(t, qdd):
+    """Largest |d qdd / dt| per joint from sampled accelerations (finite differences)."""
+    dt = np.diff(t)
+    keep = dt > 1e-9
+    return np.max(np.abs(np.diff(qdd, axis=0)[keep] / dt[keep, None]), axis=0)
+
+
+def parse_segments(text):
+    """``'label: method 1.234 s; ...'`` (planner_status) -> [(label, method, duration)]."""
+    out = []
+    for part in filter(None, (p.strip() for p in text.split(';'))):
+        label, rest = part.rsplit(':', 1)
+        method, duration, _ = rest.split()
+        out.append((label.strip(), method, float(duration)))
+    return out

@@ -1,0 +1,29 @@
+"""The main job: `picking-demo --quick` runs the Table 1 cycle through the real nodes and reports it."""
+
+import json
+import os
+import subprocess
+
+from rosstack import BIN
+
+
+def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
+    done = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--out', str(tmp_path)], capture_output=True,
+                          text=True, timeout=240, env=os.environ.copy())
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert 'goal reached' in done.stdout and 'stopped picking-sim' in done.stdout
+    report = json.loads((tmp_path / 'report.json').read_text())
+    labels = [s[0] for s in report['segments']]
+    for knot in ('P1 approach', 'P2 to the apple', 'grasp', 'P3 lift and detach', 'P4 above the box',
+                 'P5 into the box', 'release', 'P0 back home'):
+        assert knot in labels
+    assert all(report['checks'].values()), report['checks']
+    assert 2.0 < report['cycle_time_s'] < 30.0
+    # The arm ends where the plan ends, and followed its straight lines within a few millimetres.
+    assert max(report['final_error'][:6]) < 0.01
+    assert all(float(row[4]) < 5.0 for row in report['cartesian'])
+    assert report['joints'][-1] == 'gripper_joint'
+    for name in ('report.md', 'joints.png', 'tracking_error.png', 'tool_path.png', 'demo.mcap'):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    run = json.loads((tmp_path / 'run.json').read_text())
+    assert run['ok'] and set(run['events']['exit_codes'].values()) == {0}
