@@ -7,8 +7,8 @@ geometry (shoulder height, upper-arm and forearm lengths, tool offset) is read
 from the URDF, so any arm of that shape gets the closed form; every other chain
 gets damped least squares with joint limits and restarts.
 
-All closed-form work is vectorised over poses and branches; a solution is only
-returned after forward kinematics confirms it (1e-9 m, 1e-9 rad).
+All closed-form work is vectorised over poses and branches. A closed form is
+used only after a self-test against forward kinematics when the arm is loaded.
 """
 
 from __future__ import annotations
@@ -25,10 +25,15 @@ _SINGULAR = 1e-9     # |sin q5| below which the wrist is singular
 
 
 def pick_solver(arm):
-    """The fastest solver that fits the arm's geometry."""
+    """The fastest solver that fits the arm's geometry.
+
+    A closed form is accepted only after it reproduces 64 random
+    configurations exactly through forward kinematics (a self-test at load
+    time), so that no per-call confirmation is needed.
+    """
     for cls in (SphericalWrist6R, Elbow3R):
         solver = cls.fit(arm)
-        if solver is not None:
+        if solver is not None and solver.self_test():
             return solver
     return NumericSolver(arm)
 
@@ -49,16 +54,26 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
 
     q : (N, B, dof), seed : (N, dof). Returns the shifted q and a (N, B) validity mask.
     """
-    s = seed[:, None, :]
-    best = q + TWO_PI * np.round((s - q) / TWO_PI) * revolute          # nearest the seed
-    ok = (best >= lower - _TOL) & (best <= upper + _TOL)
-    if not ok.all():
-        toward = np.where(s >= best, TWO_PI, -TWO_PI) * revolute
-        for alt in (best + toward, best - toward):                     # next nearest first
-            alt_ok = (alt >= lower - _TOL) & (alt <= upper + _TOL)
-            best = np.where(~ok & alt_ok, alt, best)
-            ok |= alt_ok
-    return best, ok.all(axis=-1)
+    d = seed[:, None, :] - q
+    far = (np.abs(d) > np.pi) & (revolute > 0)
+    if far.any():                                                      # the nearest 2 pi image
+        q = q + np.where(far, TWO_PI * np.round(d / TWO_PI), 0.0)
+    ok = (q >= lower - _TOL) & (q <= upper + _TOL)
+    bad = ~ok
+    if bad.any():
+        # Only the values outside their limits try the next 2 pi images (nearer one first).
+        shape = q.shape
+        qb = q[bad]
+        sb = np.broadcast_to(seed[:, None, :], shape)[bad]
+        lo = np.broadcast_to(lower, shape)[bad] - _TOL
+        hi = np.broadcast_to(upper, shape)[bad] + _TOL
+        step = np.where(sb >= qb, TWO_PI, -TWO_PI) * np.broadcast_to(revolute, shape)[bad]
+        first, second = qb + step, qb - step
+        ok_first = (first >= lo) & (first <= hi) & (step != 0)
+        ok_second = (second >= lo) & (second <= hi) & (step != 0)
+        q[bad] = np.where(ok_first, first, np.where(ok_second, second, qb))
+        ok[bad] = ok_first | ok_second
+    return q, ok.all(axis=-1)
 
 
 def _wrap(v, s, lo, hi, revolute):
@@ -121,6 +136,16 @@ class _ClosedForm:
     def quick_reject(self, T):
         return self._reach_reason(self._targets(T[None])[0])
 
+    def self_test(self, n=64):
+        """IK of FK of random configurations within the limits gives poses back exactly."""
+        rng = np.random.default_rng(12345)
+        lo = np.where(np.isfinite(self.arm.lower), self.arm.lower, -np.pi)
+        hi = np.where(np.isfinite(self.arm.upper), self.arm.upper, np.pi)
+        Q = rng.uniform(lo, hi, (n, self.arm.dof))
+        T = self.arm.joint_frames(Q)[:, -1]
+        q, ok, _ = self.solve(T, Q)
+        return bool(ok.all() and self._confirm(q, T).all())
+
     def solve(self, T, seed):
         W = self._targets(T)
         cand, reach_ok = self.candidates(T, seed)                     # (N, B, dof)
@@ -130,8 +155,6 @@ class _ClosedForm:
         best = np.argmin(dist, axis=1)
         q = cand[np.arange(len(T)), best]
         ok = valid[np.arange(len(T)), best]
-        if ok.any():
-            ok[ok] &= self._confirm(q[ok], T[ok])
         q[~ok] = np.nan
         reasons = [''] * len(T)
         for i in np.flatnonzero(~ok):
@@ -307,30 +330,37 @@ class SphericalWrist6R(_ClosedForm):
         arm_q, reach_ok = self._arm_branches(flange[:, :3, 3], seed)   # (N, 4, 3)
         q1, q23 = arm_q[..., 0], arm_q[..., 1] + arm_q[..., 2]
         c1, s1, c23, s23 = np.cos(q1), np.sin(q1), np.cos(q23), np.sin(q23)
-        # R03 = Rz(q1) Ry(q2 + q3); R36 = R03^T R06 = Rz(q4) Ry(q5) Rz(q6).
-        R03 = np.empty(q1.shape + (3, 3))
-        R03[..., 0, 0], R03[..., 0, 1], R03[..., 0, 2] = c1 * c23, -s1, c1 * s23
-        R03[..., 1, 0], R03[..., 1, 1], R03[..., 1, 2] = s1 * c23, c1, s1 * s23
-        R03[..., 2, 0], R03[..., 2, 1], R03[..., 2, 2] = -s23, 0.0, c23
-        R = np.swapaxes(R03, -1, -2) @ flange[:, None, :3, :3]       # (N, 4, 3, 3)
-        s5 = np.hypot(R[..., 0, 2], R[..., 1, 2])
-        q5 = np.arctan2(s5, R[..., 2, 2])
-        q4 = np.arctan2(R[..., 1, 2], R[..., 0, 2])
-        q6 = np.arctan2(R[..., 2, 1], -R[..., 2, 0])
+        # Only the five entries of R36 = (Rz(q1) Ry(q2 + q3))^T R06 that ZYZ needs (the scalar
+        # path's formulas, broadcast over poses and branches).
+        F = flange[:, None, :3, :3]
+        a0, a1, a2 = c1 * c23, s1 * c23, -s23
+        e0, e1, e2 = c1 * s23, s1 * s23, c23
+        r02 = a0 * F[..., 0, 2] + a1 * F[..., 1, 2] + a2 * F[..., 2, 2]
+        r12 = -s1 * F[..., 0, 2] + c1 * F[..., 1, 2]
+        r22 = e0 * F[..., 0, 2] + e1 * F[..., 1, 2] + e2 * F[..., 2, 2]
+        r20 = e0 * F[..., 0, 0] + e1 * F[..., 1, 0] + e2 * F[..., 2, 0]
+        r21 = e0 * F[..., 0, 1] + e1 * F[..., 1, 1] + e2 * F[..., 2, 1]
+        s5 = np.hypot(r02, r12)
+        q5 = np.arctan2(s5, r22)
+        q4 = np.arctan2(r12, r02)
+        q6 = np.arctan2(r21, -r20)
         singular = s5 < _SINGULAR
         if singular.any():
             # Only q4 + q6 (or q4 - q6 when q5 = pi) is defined: keep q4 at the seed.
+            r00 = a0 * F[..., 0, 0] + a1 * F[..., 1, 0] + a2 * F[..., 2, 0]
+            r10 = -s1 * F[..., 0, 0] + c1 * F[..., 1, 0]
+            r01 = a0 * F[..., 0, 1] + a1 * F[..., 1, 1] + a2 * F[..., 2, 1]
+            r11 = -s1 * F[..., 0, 1] + c1 * F[..., 1, 1]
             q4s = np.broadcast_to(seed[:, None, 3], q4.shape)
-            phi = np.where(R[..., 2, 2] > 0, np.arctan2(R[..., 1, 0], R[..., 0, 0]),
-                           np.arctan2(-R[..., 0, 1], R[..., 1, 1]))
-            q6s = np.where(R[..., 2, 2] > 0, phi - q4s, q4s - phi)
+            q6s = np.where(r22 > 0, np.arctan2(r10, r00) - q4s, q4s - np.arctan2(-r01, r11))
             q4 = np.where(singular, q4s, q4)
             q6 = np.where(singular, q6s, q6)
-        wrist_a = np.stack([q4, q5, q6], axis=-1)
-        wrist_b = np.stack([q4 + np.pi, -q5, q6 + np.pi], axis=-1)
-        a = np.concatenate([arm_q, wrist_a], axis=-1)
-        b = np.concatenate([arm_q, wrist_b], axis=-1)
-        return np.concatenate([a, b], axis=1), reach_ok                # (N, 8, 6)
+        out = np.empty(q1.shape[:1] + (8, 6))
+        out[:, :4, :3] = arm_q
+        out[:, 4:, :3] = arm_q
+        out[:, :4, 3], out[:, :4, 4], out[:, :4, 5] = q4, q5, q6
+        out[:, 4:, 3], out[:, 4:, 4], out[:, 4:, 5] = q4 + np.pi, -q5, q6 + np.pi
+        return out, reach_ok                                           # (N, 8, 6)
 
 
 class NumericSolver:

@@ -1,0 +1,138 @@
+"""The planner core and the Table 1 pick cycle, in process (no ROS)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from picking_planner.kinematics import Unreachable, pose_matrix
+from picking_planner.pick_cycle import PickCycle, PickSettings
+from picking_planner.planning import PATH_METHODS, POSE_METHODS, Planner, PlannerSettings
+
+DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
+HOME = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
+Z = np.zeros(6)
+
+
+@pytest.fixture(scope='module')
+def planner(arm):
+    return Planner(arm, PlannerSettings(speed_scale=1.0))
+
+
+def _within_limits(arm, plan, scale=1.0):
+    t = np.linspace(0, plan.duration, 4000)
+    q, qd, qdd = plan.trajectory.sample(t)
+    n = arm.dof
+    assert np.all(np.abs(qd[:, :n]) <= arm.max_velocity * scale * (1 + 1e-6))
+    assert np.all(np.abs(qdd[:, :n]) <= arm.max_acceleration * scale**2 * (1 + 1e-6))
+    assert np.all(arm.within_limits(q[:, :n]))
+
+
+@pytest.mark.parametrize('method', POSE_METHODS)
+def test_pose_goal_reaches_the_pose_within_the_limits(arm, planner, method):
+    T = pose_matrix([0.6, 0.1, 0.4], DOWN)
+    plan = planner.plan_pose((HOME, Z, Z), T, method)
+    q_end = plan.trajectory.end_state()[0]
+    assert arm.fk(q_end) == pytest.approx(T, abs=1e-6)
+    _within_limits(arm, plan)
+    assert plan.trajectory.start_state()[0] == pytest.approx(HOME)
+
+
+def test_shortest_duration_uses_a_limit_fully(arm, planner):
+    q_goal = HOME + np.array([1.0, 0, 0, 0, 0, 0])
+    traj = planner.joint_move(HOME, q_goal, 'quintic')
+    _, qd, qdd = traj.sample(np.linspace(0, traj.duration, 4001))
+    used = max(np.abs(qd[:, 0]).max() / arm.max_velocity[0], np.abs(qdd[:, 0]).max() / arm.max_acceleration[0])
+    assert used == pytest.approx(1.0, rel=1e-3)
+
+
+def test_speed_scale_slows_the_move_down(arm):
+    T = pose_matrix([0.6, 0.1, 0.4], DOWN)
+    fast = Planner(arm, PlannerSettings(speed_scale=1.0)).plan_pose((HOME, Z, Z), T, 'lspb')
+    slow = Planner(arm, PlannerSettings(speed_scale=0.25)).plan_pose((HOME, Z, Z), T, 'lspb')
+    assert slow.duration == pytest.approx(4 * fast.duration, rel=1e-6)
+    _within_limits(arm, slow, 0.25)
+
+
+def test_fixed_duration_that_breaks_a_limit_is_refused(arm):
+    planner = Planner(arm, PlannerSettings(duration=0.05))
+    with pytest.raises(Unreachable, match='limit broken'):
+        planner.plan_pose((HOME, Z, Z), pose_matrix([0.6, 0.1, 0.4], DOWN), 'quintic')
+
+
+def test_plan_from_a_moving_state_starts_with_that_velocity(arm, planner):
+    qd0 = np.array([0.3, -0.2, 0.1, 0.0, 0.2, -0.4])
+    for method in ('quintic', 'lspb', 'line'):
+        plan = planner.plan_pose((HOME, qd0, Z), pose_matrix([0.6, 0.1, 0.4], DOWN), method)
+        q, qd, _ = plan.trajectory.sample(0.0)
+        assert q[0] == pytest.approx(HOME) and qd[0] == pytest.approx(qd0), method
+
+
+@pytest.mark.parametrize('method', PATH_METHODS)
+def test_path_goal_ends_at_the_last_pose(arm, planner, method):
+    poses = [pose_matrix([0.55, -0.1, 0.5], DOWN), pose_matrix([0.5, 0.05, 0.45], DOWN)]
+    plan = planner.plan_path((HOME, Z, Z), poses, method)
+    assert arm.fk(plan.trajectory.end_state()[0]) == pytest.approx(poses[-1], abs=1e-6)
+    _within_limits(arm, plan)
+
+
+def test_unreachable_and_bad_goals_are_refused(planner):
+    with pytest.raises(Unreachable, match='out of reach'):
+        planner.plan_pose((HOME, Z, Z), pose_matrix([2.0, 0.0, 0.3], DOWN))
+    with pytest.raises(ValueError, match='unknown method'):
+        planner.plan_pose((HOME, Z, Z), pose_matrix([0.6, 0.0, 0.4], DOWN), 'teleport')
+    with pytest.raises(ValueError, match='an arc needs'):
+        planner.plan_path((HOME, Z, Z), [pose_matrix([0.6, 0.0, 0.4], DOWN)], 'arc')
+    with pytest.raises(ValueError, match='collinear'):
+        planner.arc(HOME, *(pose_matrix(p, DOWN) for p in ([0.6, 0.0, 0.4], [0.55, 0.0, 0.4], [0.5, 0.0, 0.4])))
+
+
+@pytest.mark.parametrize('bad', [dict(speed_scale=0.0), dict(speed_scale=1.5), dict(method='x'),
+                                 dict(sample_period=0.0), dict(duration=-1.0)])
+def test_bad_settings_are_refused(bad):
+    with pytest.raises(ValueError):
+        PlannerSettings(**bad).validate()
+
+
+APPLE = pose_matrix([0.70, 0.15, 0.65], Rotation.from_euler('y', 90, degrees=True).as_quat())
+
+
+def test_table1_cycle_visits_every_knot_point_with_the_gripper(arm, planner):
+    cycle = PickCycle(planner, PickSettings().validate(arm))
+    plan = cycle.plan((HOME, Z, Z), APPLE)
+    labels = [s.label for s in plan.segments]
+    assert labels == ['P1 approach', 'P2 to the apple', 'grasp', 'P3 lift and detach', 'P4 above the box',
+                      'P5 into the box', 'release', 'P0 back home']
+    assert plan.joint_names[-1] == 'gripper_joint'
+    poses = cycle.key_poses(APPLE)
+    ends = {s.label: s.start + s.duration for s in plan.segments}
+    for label, knot in (('P2 to the apple', 'P2'), ('P3 lift and detach', 'P3'), ('P4 above the box', 'P4'),
+                        ('P5 into the box', 'P5')):
+        q = plan.trajectory.sample(ends[label])[0][0, :6]
+        assert arm.fk(q)[:3, 3] == pytest.approx(poses[knot][:3, 3], abs=1e-6), label
+    g = plan.trajectory.sample([0.0, plan.extra['grasp_end'], plan.extra['release_start'],
+                                plan.extra['release_end']])[0][:, 6]
+    s = PickSettings()
+    assert g == pytest.approx([s.gripper_open, s.gripper_closed, s.gripper_closed, s.gripper_open])
+    assert plan.trajectory.end_state()[0][:6] == pytest.approx(HOME)
+    _within_limits(arm, plan)
+
+
+def test_table1_cycle_with_an_arc_lift(arm, planner):
+    settings = PickSettings(lift_method='arc').validate(arm)
+    plan = PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)
+    assert ('P3 lift and detach', 'arc') in [(s.label, s.method) for s in plan.segments]
+    assert plan.cartesian                                  # the lines and the arc, for deviation checks
+
+
+def test_unreachable_apple_names_the_knot_point(arm, planner):
+    cycle = PickCycle(planner, PickSettings().validate(arm))
+    with pytest.raises(Unreachable, match='P1 \\(approach\\)|P2 \\(the apple\\)'):
+        cycle.plan((HOME, Z, Z), pose_matrix([1.6, 0.0, 0.6], DOWN))
+
+
+@pytest.mark.parametrize('bad', [dict(home_positions=(0.0,) * 5), dict(approach_distance=0.0),
+                                 dict(lift_method='jump'), dict(gripper_closed=0.2),
+                                 dict(box_position=(0.0, float('nan'), 0.3))])
+def test_bad_pick_settings_are_refused(arm, bad):
+    with pytest.raises(ValueError):
+        PickSettings(**bad).validate(arm)
