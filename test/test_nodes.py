@@ -134,6 +134,7 @@ def test_bad_trajectory_is_refused_by_the_controller(arm1, names, points, reason
 
 def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
     _, client = arm1
+    client.watch_commands()
     mark = client.mark()
     client.send_pose([0.45, 0.35, 0.5])
     first = client.planner_answer(mark)

@@ -31,13 +31,13 @@ from .kinematics import ArmModel, Unreachable, pose_matrix
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
-from .ros_common import ERROR, OK, reorder, run_node, status
+from .ros_common import ERROR, OK, LatestMessage, reorder, run_node, status
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
             'cartesian_accel', 'max_joint_step')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'grasp_time', 'release_time', 'box_position',
-        'box_drop_height', 'home_positions', 'transfer_method', 'place_orientation_rpy')
+        'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy')
 
 
 def msg_pose(pose):
@@ -75,7 +75,6 @@ class PlannerNode(Node):
         self.pending = []             # goals that came before the first joint_states
         self.create_timer(0.1, self._expire_pending)
         self.gripper = None           # measured finger opening, m (if the arm has a gripper)
-        self.reference = None         # (q, qd, qdd, time)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', RELIABLE)
@@ -83,7 +82,8 @@ class PlannerNode(Node):
         self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, RELIABLE)
         self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, RELIABLE)
         self.create_subscription(JointState, 'joint_states', self._on_state, qos_profile_sensor_data)
-        self.create_subscription(JointState, 'joint_commands', self._on_reference, qos_profile_sensor_data)
+        # The controller's reference, taken when a goal comes (no 1 kHz callbacks).
+        self.commands = LatestMessage(self, JointState, 'joint_commands')
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
                                f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')
@@ -131,16 +131,24 @@ class PlannerNode(Node):
             g = msg.position[list(msg.name).index('gripper_joint')]
             self.gripper = g if np.isfinite(g) else None
 
-    def _on_reference(self, msg):
+    def _reference(self):
+        """The controller's newest reference ``(q, qd, qdd, stamp)`` if fresh, else None."""
+        msg = self.commands.take()
+        if msg is None:
+            return None
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if now - stamp > self.get_parameter('reference_timeout').value:
+            return None                      # no controller is publishing: start from the measurement
         try:
             q = reorder(msg.name, msg.position, self.names, 'joint_commands')
             qd = reorder(msg.name, msg.velocity, self.names, 'joint_commands') if len(msg.velocity) else 0 * q
             qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands') if len(msg.effort) else 0 * q
         except (ValueError, IndexError):
-            return
-        if np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd)):
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            self.reference = (q, qd, qdd, self._now(), stamp)
+            return None
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd))):
+            return None
+        return q, qd, qdd, stamp
 
     def start_state(self, delay, reference, measured):
         """Where the plan starts: ``(q, qd, qdd), source, start time``.
@@ -154,7 +162,7 @@ class PlannerNode(Node):
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
-            q, qd, qdd, _, stamp = reference
+            q, qd, qdd, stamp = reference
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return (q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), 'reference', t_start
         if measured is None:
@@ -199,7 +207,7 @@ class PlannerNode(Node):
 
     def _handle(self, kind, header, plan_fn):
         key = stamp_key(header.stamp)
-        if self.measured is None and self.reference is None:
+        if self.measured is None:
             # Just started: discovery of the arm's joint_states may still be running.
             self.pending.append((kind, header, plan_fn, self._now()))
             return
@@ -208,9 +216,7 @@ class PlannerNode(Node):
             with self.lock:
                 self._check_frame(header)
                 delay = self.get_parameter('start_delay').value
-                ref = self.reference
-                if ref is not None and self._now() - ref[3] > self.get_parameter('reference_timeout').value:
-                    ref = None                      # no controller is publishing: start from the measurement
+                ref = self._reference()
                 measured = self.measured
                 for _ in range(4):
                     start, source, t_start = self.start_state(delay, ref, measured)
@@ -278,6 +284,10 @@ class PlannerNode(Node):
              ps.pose.orientation.w) = map(float, qt)
             path.poses.append(ps)
         self.pub_path.publish(path)
+
+
+    def close(self):
+        self.commands.destroy()
 
 
 def main(args=None):

@@ -4,7 +4,7 @@ P0 home -> P1 approach (pre-grasp pose, ``approach_distance`` back along the
 tool's z axis; a joint-space move) -> P2 at the apple (a straight Cartesian
 line) -> grasp (a dwell while the gripper closes) -> P3 lift and detach (a short
 line up, or an arc that lifts and pulls back) -> P4 above the fruit box
-(joint-space via-point LSPB through home for the long transfer) -> P5 into the
+(joint-space via-point LSPB through a lifted midpoint for the long transfer) -> P5 into the
 box (a line down) -> release (a dwell while the gripper opens) -> back to P0
 (via-point LSPB up through P4).
 
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import geometry, trajectory
+from . import trajectory
 from .kinematics import Unreachable
-from .planning import JOINT_METHODS, Plan, Segment
+from .planning import JOINT_METHODS, Plan
 
 LIFT_METHODS = ('line', 'arc')
 TRANSFER_METHODS = ('via_lspb', 'quintic_via')
@@ -52,11 +52,14 @@ class PickSettings:
         Tool orientation over the box, roll-pitch-yaw in rad (default: pointing down).
     transfer_method : str
         ``via_lspb`` or ``quintic_via`` for the transfer and the return.
+    transfer_lift : float
+        The transfer's via point is the joint-space midpoint with the shoulder lifted
+        back by this much, rad (clearance over the canopy and the box rim).
     gripper_open, gripper_closed : float
         Finger opening, m.
     """
 
-    home_positions: tuple = (0.0, 0.2, 1.6, 0.0, 1.3, 0.0)
+    home_positions: tuple = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
     approach_distance: float = 0.10
     lift_height: float = 0.06
     lift_method: str = 'line'
@@ -66,6 +69,7 @@ class PickSettings:
     box_drop_height: float = 0.12
     place_orientation_rpy: tuple = (np.pi, 0.0, 0.0)
     transfer_method: str = 'via_lspb'
+    transfer_lift: float = 0.15
     gripper_open: float = 0.09
     gripper_closed: float = 0.055
 
@@ -75,6 +79,8 @@ class PickSettings:
             raise ValueError(f'home_positions must be {arm.dof} finite joint values (rad)')
         if not arm.within_limits(np.asarray(self.home_positions, float)):
             raise ValueError(f'home_positions {list(self.home_positions)} are outside the joint limits')
+        if not (np.isfinite(self.transfer_lift) and 0.0 <= self.transfer_lift < 1.0):
+            raise ValueError(f'transfer_lift must be in [0, 1) rad, got {self.transfer_lift}')
         for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height'):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -130,7 +136,6 @@ class PickCycle:
         joint_method = pl.settings.method if pl.settings.method in JOINT_METHODS else 'quintic'
         poses = self.key_poses(T_apple)
         home = np.asarray(s.home_positions, float)
-        q_now = np.asarray(start[0], float)
         # Step C first: every knot point must be reachable before anything moves.
         q = {}
         seed = home
@@ -170,7 +175,7 @@ class PickCycle:
             traj, path = pl.arc(q_apple, T2, mid, end)
         add('P3 lift and detach', s.lift_method, traj, path)
         q_lift = traj.end_state()[0]
-        transfer = pl._via(np.array([q_lift, home, q['P4']]), s.transfer_method)
+        transfer = pl._via(np.array([q_lift, self._clearance(q_lift, q['P4']), q['P4']]), s.transfer_method)
         add('P4 above the box', s.transfer_method, transfer)
         traj, path = pl.line(q['P4'], arm.fk(q['P4']), poses['P5'])
         add('P5 into the box', 'line', traj, path)
@@ -182,6 +187,12 @@ class PickCycle:
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)
+
+    def _clearance(self, qa, qb):
+        """The transfer's via point: halfway in joint space, the shoulder lifted by ``transfer_lift``."""
+        mid = 0.5 * (qa + qb)
+        mid[1] -= self.s.transfer_lift
+        return np.clip(mid, self.arm.lower, self.arm.upper)
 
     def _gripper_time(self, wanted):
         """A dwell long enough for the fingers to move within their limits (quintic peaks)."""

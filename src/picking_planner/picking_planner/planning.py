@@ -60,8 +60,8 @@ class PlannerSettings:
     speed_scale: float = 0.5
     duration: float = 0.0
     sample_period: float = 0.01
-    cartesian_speed: float = 0.25
-    cartesian_accel: float = 1.0
+    cartesian_speed: float = 0.6
+    cartesian_accel: float = 4.0
     max_joint_step: float = 0.25
 
     def validate(self):
@@ -325,12 +325,20 @@ class Planner:
         return self._join(parts, method, cart)
 
     def _via(self, qs, method):
-        """Joint via points with per-segment durations from the limits, stretched until feasible."""
-        durations = np.array([self.shortest_duration(a, b, 'lspb' if method == 'via_lspb' else 'quintic')
-                              for a, b in zip(qs[:-1], qs[1:])])
+        """Joint via points timed from the limits, stretched until feasible.
+
+        Each segment starts from the rest-to-rest time of its slowest joint (80 % of
+        it for via-point LSPB, which passes its via points at speed); the durations
+        then grow by 8 % until the blends fit and every limit holds.
+        """
+        profile = 'lspb' if method == 'via_lspb' else 'quintic'
+        durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
+        if method == 'via_lspb' and len(durations) > 1:
+            # Interior via points are passed at speed, not stopped at: start from 80 %.
+            durations *= 0.8
         durations = np.maximum(durations, 2 * self.settings.sample_period)
         last = None
-        for _ in range(8):
+        for _ in range(30):
             try:
                 if method == 'via_lspb':
                     traj = trajectory.via_lspb(qs, durations, self._amax)
@@ -340,5 +348,5 @@ class Planner:
                 return traj
             except ValueError as exc:       # blends do not fit, or a limit is broken: slow down
                 last = exc
-                durations = durations * 1.25
+                durations = durations * 1.08
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')

@@ -13,6 +13,7 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 
@@ -108,3 +109,35 @@ def reorder(msg_names, values, names, what):
         raise ValueError(f'{what} lacks joints {missing}')
     values = np.asarray(values, dtype=float)
     return values[..., [index[n] for n in names]]
+
+
+class LatestMessage:
+    """The newest message of a fast topic, taken on demand instead of by a callback.
+
+    A 1 kHz stream costs an rclpy executor a large share of a core in callbacks;
+    a reader that needs only the newest sample (the simulator's servo loop, the
+    planner when a goal comes) keeps a depth-1 subscription on a hidden helper
+    node that no executor spins, and takes from it when it wants.
+    """
+
+    def __init__(self, parent, msg_type, topic):
+        self.msg_type = msg_type
+        self.node = rclpy.create_node(f'_{parent.get_name()}_{topic.strip("/").replace("/", "_")}_tap',
+                                      namespace=parent.get_namespace())
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
+        self.sub = self.node.create_subscription(msg_type, topic, lambda msg: None, qos)
+        self.last = None
+
+    def take(self):
+        """The newest message received so far (None before the first)."""
+        while True:
+            got = self.sub.handle.take_message(self.msg_type, False)
+            if got is None:
+                return self.last
+            self.last = got[0]
+
+    def publisher_count(self):
+        return self.sub.get_publisher_count()
+
+    def destroy(self):
+        self.node.destroy_node()

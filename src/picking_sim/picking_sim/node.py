@@ -15,13 +15,13 @@ import time
 import numpy as np
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import joint_state, reorder, run_node
+from picking_planner.ros_common import LatestMessage, joint_state, reorder, run_node
 
 from .servo import Servo, ServoParams
 
@@ -60,7 +60,9 @@ class SimNode(Node):
         self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
         self.pub_description = self.create_publisher(String, 'robot_description', LATCHED)
         self.pub_description.publish(String(data=self.arm.urdf))
-        self.create_subscription(JointState, 'joint_commands', self._on_command, qos_profile_sensor_data)
+        # The servo thread takes the newest command itself: no 1 kHz executor callbacks.
+        self.commands = LatestMessage(self, JointState, 'joint_commands')
+        self._applied = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name='servo', daemon=True)
         self._thread.start()
@@ -84,15 +86,18 @@ class SimNode(Node):
             self.declare_parameter('initial_positions', Parameter.Type.DOUBLE_ARRAY).value or [])
         return out
 
-    def _on_command(self, msg):
+    def _apply_newest_command(self):
+        msg = self.commands.take()
+        if msg is None or msg is self._applied:
+            return
+        self._applied = msg
         try:
             q = reorder(msg.name, msg.position, self.names, 'joint_commands position')
             qd = reorder(msg.name, msg.velocity, self.names, 'joint_commands velocity') \
                 if len(msg.velocity) else None
             qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands effort') \
                 if len(msg.effort) else None
-            with self.lock:
-                self.servo.command(q, qd, qdd)
+            self.servo.command(q, qd, qdd)
         except (ValueError, IndexError) as exc:
             self.get_logger().warn(f'ignoring joint_commands: {exc}', throttle_duration_sec=2.0)
 
@@ -105,6 +110,7 @@ class SimNode(Node):
             due = int((time.monotonic() - start) / dt) + 1 - done
             if due > 0:
                 with self.lock:
+                    self._apply_newest_command()
                     for _ in range(due):
                         self.servo.step()
                         done += 1
@@ -125,6 +131,7 @@ class SimNode(Node):
     def close(self):
         self._stop.set()
         self._thread.join(timeout=1.0)
+        self.commands.destroy()
 
 
 def main(args=None):

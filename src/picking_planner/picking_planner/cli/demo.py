@@ -194,7 +194,7 @@ def run_arc_scenario(demo, spin_until, rec):
     if first.returncode != 0 or arc.returncode != 0:
         raise RuntimeError(f'the arc scenario failed: {first.stderr}{arc.stderr}'.strip())
     spin_until(lambda: rec.count('joint_trajectory') > n, 5.0, 'the arc trajectory')
-    return {'points': [p.tolist() for p in pts], 'trajectory_index': n}
+    return {'points': [p.tolist() for p in pts], 'trajectory_index': n, 'scale': scale}
 
 
 def main(argv=None):

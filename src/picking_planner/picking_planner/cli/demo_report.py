@@ -165,7 +165,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
     decoded = _check_mcap(mcap_path)
     checks['MCAP decodes with mcap_ros2'] = decoded == n_msgs
     lines += ['', '## Files', ''] + [f'- `{f}`' for f in files] + [
-        f'', f'`demo.mcap`: {n_msgs} messages on {len(rec.types)} topics, all decoded again with mcap_ros2 '
+        '', f'`demo.mcap`: {n_msgs} messages on {len(rec.types)} topics, all decoded again with mcap_ros2 '
         f'({decoded}); open it in Foxglove or with `ros2 bag info`.']
     report = '\n'.join(lines) + '\n'
     (out / 'report.md').write_text(report)
@@ -193,7 +193,7 @@ def arc_section(rec, arc_event, arm, names):
     dev_meas = distance_to_arc_circle(arm.fk(q_meas[inside, :arm.dof])[:, :3, 3], arc).max()
     return ['', '## Scenario 2: the paper\'s Sec. 3.1 arc', '',
             f'P1 {np.round(p1, 3).tolist()}, P2 {np.round(p2, 3).tolist()}, P3 {np.round(p3, 3).tolist()} m '
-            f'(the paper\'s points x {arc_event.get("scale", "")} scaled into the workspace): radius '
+            f'(the paper\'s points times {arc_event.get("scale", "?")} m, moved into the workspace): radius '
             f'{arc.radius * 1e3:.1f} mm, sweep {np.degrees(arc.sweep):.1f}°, {t[-1] - t[0]:.2f} s. Largest distance '
             f'of the tool from the arc: planned {dev_plan * 1e3:.3f} mm, measured {dev_meas * 1e3:.3f} mm.']
 
