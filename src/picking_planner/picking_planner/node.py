@@ -35,8 +35,8 @@ from .ros_common import ERROR, OK, LatestMessage, reorder, run_node, status
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
-            'cartesian_accel', 'max_joint_step')
-PICK = ('approach_distance', 'lift_height', 'lift_method', 'grasp_time', 'release_time', 'box_position',
+            'cartesian_accel', 'cartesian_profile', 'max_joint_step')
+PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
         'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy')
 
 

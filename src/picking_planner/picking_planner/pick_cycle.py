@@ -1,7 +1,7 @@
 """The apple pick-and-place cycle of the paper's Table 1, as one plan (pure core).
 
 P0 home -> P1 approach (pre-grasp pose, ``approach_distance`` back along the
-tool's z axis; a joint-space move) -> P2 at the apple (a straight Cartesian
+tool's z axis; a joint-space LSPB move) -> P2 at the apple (a straight Cartesian
 line) -> grasp (a dwell while the gripper closes) -> P3 lift and detach (a short
 line up, or an arc that lifts and pulls back) -> P4 above the fruit box
 (joint-space via-point LSPB through a lifted midpoint for the long transfer) -> P5 into the
@@ -42,6 +42,10 @@ class PickSettings:
     lift_method : str
         ``line`` (straight up) or ``arc`` (up and back along a quarter-arc: twists the
         stem less).
+    approach_method : str
+        Joint-space profile of the moves to P0 and P1: ``lspb`` (the paper's linear
+        segments with parabolic blends, the fastest within the limits), ``quintic`` or
+        ``cubic``.
     grasp_time, release_time : float
         Dwells while the gripper closes and opens, s.
     box_position : list of float
@@ -63,7 +67,8 @@ class PickSettings:
     approach_distance: float = 0.10
     lift_height: float = 0.06
     lift_method: str = 'line'
-    grasp_time: float = 0.3
+    approach_method: str = 'lspb'
+    grasp_time: float = 0.25
     release_time: float = 0.25
     box_position: tuple = (0.05, -0.55, 0.30)
     box_drop_height: float = 0.12
@@ -89,6 +94,8 @@ class PickSettings:
             value = np.asarray(getattr(self, name), float)
             if value.shape != (n,) or not np.all(np.isfinite(value)):
                 raise ValueError(f'{name} must be {n} finite numbers')
+        if self.approach_method not in JOINT_METHODS:
+            raise ValueError(f'approach_method must be one of {JOINT_METHODS}, got {self.approach_method!r}')
         if self.lift_method not in LIFT_METHODS:
             raise ValueError(f'lift_method must be one of {LIFT_METHODS}, got {self.lift_method!r}')
         if self.transfer_method not in TRANSFER_METHODS:
@@ -133,7 +140,7 @@ class PickCycle:
         Raises Unreachable naming the knot point that cannot be reached.
         """
         pl, s, arm = self.planner, self.s, self.arm
-        joint_method = pl.settings.method if pl.settings.method in JOINT_METHODS else 'quintic'
+        joint_method = s.approach_method
         poses = self.key_poses(T_apple)
         home = np.asarray(s.home_positions, float)
         # Step C first: every knot point must be reachable before anything moves.

@@ -51,6 +51,9 @@ class PlannerSettings:
     cartesian_speed, cartesian_accel : float
         Initial guesses for line and arc timing, m/s and m/s^2 (stretched when
         the joints need more time).
+    cartesian_profile : str
+        Time profile of the progress along lines and arcs: ``quintic`` (smooth
+        ends), ``lspb`` or ``cubic``.
     max_joint_step : float
         Jump threshold of Cartesian paths, rad per sample.
     """
@@ -62,6 +65,7 @@ class PlannerSettings:
     sample_period: float = 0.01
     cartesian_speed: float = 0.6
     cartesian_accel: float = 4.0
+    cartesian_profile: str = 'quintic'
     max_joint_step: float = 0.25
 
     def validate(self):
@@ -69,6 +73,9 @@ class PlannerSettings:
             raise ValueError(f'unknown method {self.method!r}; choose one of {", ".join(POSE_METHODS)}')
         if self.path_method not in PATH_METHODS:
             raise ValueError(f'unknown path_method {self.path_method!r}; choose one of {", ".join(PATH_METHODS)}')
+        if self.cartesian_profile not in geometry.PROFILES:
+            raise ValueError(f'unknown cartesian_profile {self.cartesian_profile!r}; choose one of '
+                             f'{", ".join(geometry.PROFILES)}')
         if not 0.0 < self.speed_scale <= 1.0:
             raise ValueError(f'speed_scale must be in (0, 1], got {self.speed_scale}')
         for name in ('sample_period', 'cartesian_speed', 'cartesian_accel', 'max_joint_step'):
@@ -241,7 +248,7 @@ class Planner:
         guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
         T = s.duration or guess
         for _ in range(6):
-            path = geometry.CartesianPath.timed(curve, T, 'quintic', orientations=orientations, keys=keys)
+            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations, keys=keys)
             jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
                                     check_limits=False)
             over = max(float(np.max(jp.peak_velocity / self._vmax)),
@@ -327,18 +334,18 @@ class Planner:
     def _via(self, qs, method):
         """Joint via points timed from the limits, stretched until feasible.
 
-        Each segment starts from the rest-to-rest time of its slowest joint (80 % of
+        Each segment starts from the rest-to-rest time of its slowest joint (60 % of
         it for via-point LSPB, which passes its via points at speed); the durations
-        then grow by 8 % until the blends fit and every limit holds.
+        then grow by 4 % until the blends fit and every limit holds.
         """
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
         durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
         if method == 'via_lspb' and len(durations) > 1:
-            # Interior via points are passed at speed, not stopped at: start from 80 %.
-            durations *= 0.8
+            # Interior via points are passed at speed, not stopped at: start from 60 %.
+            durations *= 0.6
         durations = np.maximum(durations, 2 * self.settings.sample_period)
         last = None
-        for _ in range(30):
+        for _ in range(60):
             try:
                 if method == 'via_lspb':
                     traj = trajectory.via_lspb(qs, durations, self._amax)
@@ -348,5 +355,5 @@ class Planner:
                 return traj
             except ValueError as exc:       # blends do not fit, or a limit is broken: slow down
                 last = exc
-                durations = durations * 1.08
+                durations = durations * 1.04
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')
