@@ -294,9 +294,9 @@ class ArmModel:
         ValueError
             For non-finite or malformed input.
         """
-        T = _check_pose(T)
+        T, rows = _check_pose(T, as_rows=True)
         if hasattr(self._solver, 'solve_one'):
-            q, reason = self._solver.solve_one(T, self._seed_list(seed))
+            q, reason = self._solver.solve_one(rows, self._seed_list(seed))
             if q is None:
                 raise Unreachable(reason)
             return np.array(q)
@@ -354,7 +354,8 @@ class ArmModel:
         Returns the IK solution nearest ``seed`` when the target is reachable;
         raises :class:`Unreachable` with the reason otherwise.
         """
-        reason = self._solver.quick_reject(_check_pose(T))
+        T = _check_pose(T)
+        reason = self._solver.quick_reject(T)
         if reason:
             raise Unreachable(reason)
         return self.ik(T, seed)
@@ -365,8 +366,11 @@ class ArmModel:
         return self._solver.reach
 
 
-def _check_pose(T):
-    """A finite 4x4 pose with a proper rotation block, else ValueError (in plain floats: fast)."""
+def _check_pose(T, as_rows=False):
+    """A finite 4x4 pose with a proper rotation block, else ValueError (in plain floats: fast).
+
+    With ``as_rows=True`` also returns the pose as nested lists of floats.
+    """
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f'pose must be a 4x4 homogeneous transform, got shape {T.shape}')
@@ -382,7 +386,7 @@ def _check_pose(T):
            + a[2] * (b[0] * c[1] - b[1] * c[0]))
     if max(abs(d) for d in dots) > 1e-6 or det < 0:
         raise ValueError('pose rotation block must be a proper rotation matrix')
-    return T
+    return (T, rows) if as_rows else T
 
 
 def load_joint_limits(path):

@@ -162,12 +162,12 @@ class _ClosedForm:
                           'beyond joint limits: every IK solution puts a joint outside its limits')
         return q, ok, reasons
 
-    def solve_one(self, T, seed):
-        """One pose, in plain floats: the same solutions as :meth:`solve`, a few µs each.
+    def solve_one(self, rows, seed):
+        """One pose as nested lists of floats: the same solutions as :meth:`solve`, fast.
 
         Returns ``(q, '')`` or ``(None, reason)``.
         """
-        W = self._target_one(T)
+        W = self._target_one(rows)
         arms = self._arm_branches_one(W, seed)
         if arms is None:
             return None, self._reach_reason(np.array(W))
@@ -255,8 +255,8 @@ class Elbow3R(_ClosedForm):
     def _targets(self, T):
         return T[:, :3, 3]
 
-    def _target_one(self, T):
-        return (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
+    def _target_one(self, rows):
+        return (rows[0][3], rows[1][3], rows[2][3])
 
     def _wrist_one(self, arm_q, seed):
         return ((),)
@@ -286,13 +286,20 @@ class SphericalWrist6R(_ClosedForm):
             return None
         solver = cls(arm, o[0][:3, 3], d, l2, l3)
         solver.tool_inv = np.linalg.inv(arm._tool)
+        solver._tool_offset = _pure_z_offset(arm._tool)
         return solver
 
     def _targets(self, T):
         return (T @ self.tool_inv)[:, :3, 3]
 
-    def _target_one(self, T):
-        self._flange = F = (T @ self.tool_inv).tolist()
+    def _target_one(self, rows):
+        """The flange pose (nested lists) and the wrist centre, for a pose given as nested lists."""
+        if self._tool_offset is not None:
+            # A tool that only sits d along the flange's z axis: flange = pose moved back by d.
+            d = self._tool_offset
+            self._flange = F = [[r[0], r[1], r[2], r[3] - d * r[2]] for r in rows[:3]]
+        else:
+            self._flange = F = (np.array(rows) @ self.tool_inv).tolist()
         return (F[0][3], F[1][3], F[2][3])
 
     def _wrist_one(self, arm_q, seed):
