@@ -37,7 +37,8 @@ RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
-        'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy')
+        'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy',
+        'place_yaw_free')
 
 
 def msg_pose(pose):

@@ -54,6 +54,10 @@ class PickSettings:
         P4 lies this far above P5, m.
     place_orientation_rpy : list of float
         Tool orientation over the box, roll-pitch-yaw in rad (default: pointing down).
+    place_yaw_free : bool
+        An apple drops the same whatever the gripper's turn about the vertical: let
+        the planner choose that turn (in 30 degree steps) for the quickest transfer
+        and return.
     transfer_method : str
         ``via_lspb`` or ``quintic_via`` for the transfer and the return.
     transfer_lift : float
@@ -73,6 +77,7 @@ class PickSettings:
     box_position: tuple = (0.05, -0.55, 0.30)
     box_drop_height: float = 0.12
     place_orientation_rpy: tuple = (np.pi, 0.0, 0.0)
+    place_yaw_free: bool = True
     transfer_method: str = 'via_lspb'
     transfer_lift: float = 0.15
     gripper_open: float = 0.09
@@ -150,8 +155,12 @@ class PickCycle:
             try:
                 q[name] = arm.check_reachable(poses[name], seed=seed)
             except Unreachable as exc:
-                raise Unreachable(f'{name} ({_LABELS[name]}): {exc}') from None
-            seed = q[name]
+                if not (s.place_yaw_free and name in ('P4', 'P5')):
+                    raise Unreachable(f'{name} ({_LABELS[name]}): {exc}') from None
+                q[name] = None
+            seed = q[name] if q[name] is not None else seed
+        if s.place_yaw_free:
+            poses, q['P4'], q['P5'] = self._quickest_place(poses, q['P3'], home)
         parts, cart = [], []
 
         def add(label, method, traj, path=None):
@@ -194,6 +203,28 @@ class PickCycle:
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)
+
+    def _quickest_place(self, poses, q_lift, home):
+        """P4 and P5 turned about the vertical for the quickest transfer and return."""
+        vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
+        best = None
+        for yaw in np.radians(np.arange(-180, 180, 30)):
+            turn = np.eye(4)
+            turn[:3, :3] = Rotation.from_euler('z', yaw).as_matrix()
+            P4, P5 = poses['P4'].copy(), poses['P5'].copy()
+            P4[:3, :3] = turn[:3, :3] @ P4[:3, :3]
+            P5[:3, :3] = turn[:3, :3] @ P5[:3, :3]
+            try:
+                q4 = self.arm.check_reachable(P4, seed=q_lift)
+                q5 = self.arm.check_reachable(P5, seed=q4)
+            except Unreachable:
+                continue
+            cost = np.max(np.abs(q4 - q_lift) / vmax) + np.max(np.abs(home - q4) / vmax)
+            if best is None or cost < best[0]:
+                best = (cost, P4, P5, q4, q5)
+        if best is None:
+            raise Unreachable('P4 (above the box): no turn of the gripper about the vertical reaches the box')
+        return {**poses, 'P4': best[1], 'P5': best[2]}, best[3], best[4]
 
     def _clearance(self, qa, qb):
         """The transfer's via point: halfway in joint space, the shoulder lifted by ``transfer_lift``."""

@@ -29,6 +29,10 @@ JOINT_METHODS = ('cubic', 'quintic', 'lspb')
 POSE_METHODS = JOINT_METHODS + ('line',)
 PATH_METHODS = ('via_lspb', 'quintic_via', 'line', 'arc')
 
+#: Plans use at most this fraction of the scaled limits, so that the controller's spline
+#: through the 10 ms points (which can overshoot the plan by a hair) never crosses a limit.
+PLAN_MARGIN = 0.98
+
 # Peak velocity and acceleration of a unit move in unit time, for sizing durations.
 _PEAKS = {'cubic': (1.5, 6.0), 'quintic': (1.875, 10.0 / np.sqrt(3.0))}
 
@@ -157,12 +161,12 @@ class Planner:
     @property
     def _vmax(self):
         v = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
-        return v * self.settings.speed_scale
+        return v * self.settings.speed_scale * PLAN_MARGIN
 
     @property
     def _amax(self):
         a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
-        return a * self.settings.speed_scale ** 2
+        return a * (self.settings.speed_scale ** 2) * PLAN_MARGIN
 
     def shortest_duration(self, q0, qf, method):
         """The shortest time in which every joint makes its move within the scaled limits, s."""
