@@ -371,20 +371,23 @@ def _check_pose(T, as_rows=False):
 
     With ``as_rows=True`` also returns the pose as nested lists of floats.
     """
-    T = np.asarray(T, dtype=float)
+    if not (isinstance(T, np.ndarray) and T.dtype == np.float64):
+        T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f'pose must be a 4x4 homogeneous transform, got shape {T.shape}')
     rows = T.tolist()
+    a, b, c, d = rows
     # One sum is finite only if every term is (a NaN or inf anywhere poisons it).
-    if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2]) + sum(rows[3])):
+    if not math.isfinite(sum(a) + sum(b) + sum(c) + sum(d)):
         raise ValueError('pose must be finite')
-    a, b, c = rows[0][:3], rows[1][:3], rows[2][:3]
-    dots = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0, b[0] * b[0] + b[1] * b[1] + b[2] * b[2] - 1.0,
-            c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - 1.0, a[0] * b[0] + a[1] * b[1] + a[2] * b[2],
-            a[0] * c[0] + a[1] * c[1] + a[2] * c[2], b[0] * c[0] + b[1] * c[1] + b[2] * c[2])
-    det = (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-           + a[2] * (b[0] * c[1] - b[1] * c[0]))
-    if max(abs(d) for d in dots) > 1e-6 or det < 0:
+    a0, a1, a2 = a[0], a[1], a[2]
+    b0, b1, b2 = b[0], b[1], b[2]
+    c0, c1, c2 = c[0], c[1], c[2]
+    worst = max(abs(a0 * a0 + a1 * a1 + a2 * a2 - 1.0), abs(b0 * b0 + b1 * b1 + b2 * b2 - 1.0),
+                abs(c0 * c0 + c1 * c1 + c2 * c2 - 1.0), abs(a0 * b0 + a1 * b1 + a2 * b2),
+                abs(a0 * c0 + a1 * c1 + a2 * c2), abs(b0 * c0 + b1 * c1 + b2 * c2))
+    det = a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
+    if worst > 1e-6 or det < 0:
         raise ValueError('pose rotation block must be a proper rotation matrix')
     return (T, rows) if as_rows else T
 

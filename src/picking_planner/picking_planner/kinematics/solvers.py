@@ -54,25 +54,24 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
 
     q : (N, B, dof), seed : (N, dof). Returns the shifted q and a (N, B) validity mask.
     """
-    d = seed[:, None, :] - q
-    far = (np.abs(d) > np.pi) & (revolute > 0)
-    if far.any():                                                      # the nearest 2 pi image
-        q = q + np.where(far, TWO_PI * np.round(d / TWO_PI), 0.0)
+    s = seed[:, None, :]
+    turns = np.rint((s - q) * (1.0 / TWO_PI))                          # the 2 pi image nearest the seed
+    if not revolute.all():
+        turns *= revolute
+    q = q + TWO_PI * turns
     ok = (q >= lower - _TOL) & (q <= upper + _TOL)
     bad = ~ok
     if bad.any():
         # Only the values outside their limits try the next 2 pi images (nearer one first).
-        shape = q.shape
-        qb = q[bad]
-        sb = np.broadcast_to(seed[:, None, :], shape)[bad]
-        lo = np.broadcast_to(lower, shape)[bad] - _TOL
-        hi = np.broadcast_to(upper, shape)[bad] + _TOL
-        step = np.where(sb >= qb, TWO_PI, -TWO_PI) * np.broadcast_to(revolute, shape)[bad]
+        n, b, j = np.nonzero(bad)
+        qb = q[n, b, j]
+        lo, hi = lower[j] - _TOL, upper[j] + _TOL
+        step = np.where(seed[n, j] >= qb, TWO_PI, -TWO_PI) * revolute[j]
         first, second = qb + step, qb - step
         ok_first = (first >= lo) & (first <= hi) & (step != 0)
         ok_second = (second >= lo) & (second <= hi) & (step != 0)
-        q[bad] = np.where(ok_first, first, np.where(ok_second, second, qb))
-        ok[bad] = ok_first | ok_second
+        q[n, b, j] = np.where(ok_first, first, np.where(ok_second, second, qb))
+        ok[n, b, j] = ok_first | ok_second
     return q, ok.all(axis=-1)
 
 
@@ -147,18 +146,21 @@ class _ClosedForm:
         return bool(ok.all() and self._confirm(q, T).all())
 
     def solve(self, T, seed):
-        W = self._targets(T)
         cand, reach_ok = self.candidates(T, seed)                     # (N, B, dof)
         cand, in_limits = _wrap_into_limits(cand, seed, self.arm.lower, self.arm.upper, self.revolute)
-        valid = in_limits & reach_ok[:, None] & np.all(np.isfinite(cand), axis=-1)
-        dist = np.where(valid, np.sum((cand - seed[:, None, :]) ** 2, axis=-1), np.inf)
+        valid = in_limits & reach_ok[:, None]
+        d = cand - seed[:, None, :]
+        dist = np.where(valid, np.einsum('nbj,nbj->nb', d, d), np.inf)
+        rows = np.arange(len(T))
         best = np.argmin(dist, axis=1)
-        q = cand[np.arange(len(T)), best]
-        ok = valid[np.arange(len(T)), best]
+        q = cand[rows, best]
+        ok = valid[rows, best] & np.isfinite(q).all(axis=1)
         q[~ok] = np.nan
         reasons = [''] * len(T)
-        for i in np.flatnonzero(~ok):
-            reasons[i] = (self._reach_reason(W[i]) or
+        failed = np.flatnonzero(~ok)
+        W = self._targets(T[failed]) if failed.size else None
+        for k, i in enumerate(failed):
+            reasons[i] = (self._reach_reason(W[k]) or
                           'beyond joint limits: every IK solution puts a joint outside its limits')
         return q, ok, reasons
 
@@ -173,6 +175,10 @@ class _ClosedForm:
             return None, self._reach_reason(np.array(W))
         lower, upper, revolute = self._limits[0], self._limits[1], self._revolute_flags
         best, best_d = None, math.inf
+        # Likely nearest branch first (same shoulder side and elbow sign as the seed), so
+        # that the others are pruned after a joint or two.
+        s0, s2 = seed[0], seed[2]
+        arms.sort(key=lambda a: abs(math.remainder(a[0] - s0, TWO_PI)) + abs(a[2] - s2))
         for arm_q in arms:
             head, d_head = [], 0.0
             for j in range(3):
