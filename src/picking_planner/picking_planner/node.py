@@ -24,6 +24,7 @@ from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -275,7 +276,6 @@ class PlannerNode(Node):
         path = Path()
         path.header.frame_id = self.arm.base_frame
         path.header.stamp = self.get_clock().now().to_msg()
-        from scipy.spatial.transform import Rotation
         quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
         for T, qt in zip(tool, quats):
             ps = PoseStamped()

@@ -208,24 +208,17 @@ def build_parser():
     p.add_argument('--duration', type=float, default=2.0, help='traversal time, s')
     p.add_argument('--profile', choices=geometry.PROFILES, default='quintic')
     p = sub.add_parser('workspace', help="plot the arm's reachable workspace (reach shell and limits)")
-    p.add_argument('--urdf', type=Path, default=_default_urdf(), help='arm model (default %(default)s)')
+    p.add_argument('--urdf', type=Path, default=None, help='arm model (default: config/picking_arm.urdf)')
     p.add_argument('--samples', type=int, default=20000, help='random configurations within the limits')
     return parser
-
-
-def _default_urdf():
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        if (parent / 'config' / 'picking_arm.urdf').exists():
-            return parent / 'config' / 'picking_arm.urdf'
-    return Path('config/picking_arm.urdf')
 
 
 def save_workspace(urdf, samples, out):
     """Side and top views of tool positions over random joint values within the limits."""
     from ..kinematics import ArmModel
     from ..plots import plot_workspace
-    arm = ArmModel.from_urdf(urdf)
+    from ..resources import default_urdf
+    arm = ArmModel.from_urdf(urdf or default_urdf())
     rng = np.random.default_rng(0)
     lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
     hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
