@@ -150,9 +150,12 @@ def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
     with client.lock:
         cmds = [m for _, m in client.commands[mark['commands']:]]
     vel = np.array([m.velocity[:6] for m in cmds])
-    steps = np.abs(np.diff(vel, axis=0)).max()
-    # At most one acceleration limit's worth (12 rad/s^2) per 1 ms tick, with slack for jitter.
-    assert steps < 0.05, steps
+    stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in cmds])
+    # Velocity changes between consecutive commands (some may be lost: best effort), as
+    # accelerations: a jump would show as hundreds of rad/s^2; the limits are 6-12.
+    dt = np.maximum(np.diff(stamps), 2e-4)
+    accel = (np.abs(np.diff(vel, axis=0)) / dt[:, None]).max()
+    assert accel < 2.0 * ARM.max_acceleration.max(), accel
     assert np.abs(vel).max() > 0.05                  # it really was moving
     assert np.linalg.norm(tool_position(client) - [0.6, -0.2, 0.45]) < 1e-3
 

@@ -107,14 +107,16 @@ class ControllerNode(Node):
         names = self.core.names
         while not self._stop.is_set():
             next_t += period
-            now = self.now()
+            stamp = self.get_clock().now()
+            now = stamp.nanoseconds * 1e-9
             with self.lock:
                 events = self.core.tick(now)
                 ref = self.core.reference(now)
             if events:
                 self._report(events)
             if ref is not None:
-                self.pub_cmd.publish(joint_state(names, self.get_clock().now().to_msg(), *ref))
+                # Stamped with the time the reference was sampled at: the tick's time.
+                self.pub_cmd.publish(joint_state(names, stamp.to_msg(), *ref))
             self.ticks += 1
             delay = next_t - time.monotonic()
             if delay > 0:
