@@ -193,6 +193,7 @@ def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path
         client.controller_event(refused, 'trajectory rejected', 10.0)
         stack.restart_sim()
         client.controller_event(mark, 'feedback restored', 20.0)
+        time.sleep(1.0)          # the new simulator's command subscription is still being discovered
         reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
     finally:
         codes = stack.stop()
