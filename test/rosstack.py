@@ -138,6 +138,14 @@ class Client(Node):
         self.wait_for(lambda: self.pub_pose.get_subscription_count() > 0
                       and self.pub_traj.get_subscription_count() > 0, timeout, 'planner and controller')
         self.wait_for(lambda: self.pub_traj.get_subscription_count() > 0, timeout, 'the controller')
+        # The controller commands only once it has feedback: wait for a few of its commands.
+        seen = []
+        probe = self.create_subscription(JointState, 'joint_commands', lambda m: seen.append(1),
+                                         qos_profile_sensor_data)
+        try:
+            self.wait_for(lambda: len(seen) > 3, timeout, 'the controller to hold the arm')
+        finally:
+            self.destroy_subscription(probe)
 
     def mark(self):
         with self.lock:

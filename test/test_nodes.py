@@ -184,6 +184,7 @@ def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path
     client = Client('/sys3')
     try:
         client.wait_ready()
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))      # the whole loop works first
         mark = client.mark()
         assert stack.sim.stop() == 0
         lost = client.controller_event(mark, 'feedback lost', 10.0)
