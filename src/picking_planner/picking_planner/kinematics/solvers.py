@@ -75,6 +75,24 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
     return q, ok.all(axis=-1)
 
 
+def _nearest_images(values, first, seed, lower, upper, revolute):
+    """Joints ``first, first+1, ...`` moved to their images nearest the seed within the limits.
+
+    Returns ``(list, squared distance to the seed)``, or None if a joint cannot be placed.
+    """
+    out, dist = [], 0.0
+    for j, v in enumerate(values, start=first):
+        sj = seed[j]
+        # Fast accept: inside the limits and already the 2 pi image nearest the seed.
+        if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
+            v = _wrap(v, sj, lower[j], upper[j], revolute[j])
+            if v is None:
+                return None
+        out.append(v)
+        dist += (v - sj) ** 2
+    return out, dist
+
+
 def _wrap(v, s, lo, hi, revolute):
     """One joint value shifted by 2 pi into [lo, hi], nearest ``s``; None if it cannot be."""
     if revolute:
@@ -180,32 +198,13 @@ class _ClosedForm:
         s0, s2 = seed[0], seed[2]
         arms.sort(key=lambda a: abs(math.remainder(a[0] - s0, TWO_PI)) + abs(a[2] - s2))
         for arm_q in arms:
-            head, d_head = [], 0.0
-            for j in range(3):
-                v, sj = arm_q[j], seed[j]
-                # Fast accept: inside the limits and already the 2 pi image nearest the seed.
-                if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
-                    v = _wrap(v, sj, lower[j], upper[j], revolute[j])
-                    if v is None:
-                        break
-                head.append(v)
-                d_head += (v - sj) ** 2
-            else:
-                if d_head >= best_d:
-                    continue
-                for wrist in self._wrist_one(arm_q, seed):
-                    q, d = head[:], d_head
-                    for j, v in enumerate(wrist, start=3):
-                        sj = seed[j]
-                        if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
-                            v = _wrap(v, sj, lower[j], upper[j], revolute[j])
-                            if v is None:
-                                break
-                        q.append(v)
-                        d += (v - sj) ** 2
-                    else:
-                        if d < best_d:
-                            best, best_d = q, d
+            head = _nearest_images(arm_q, 0, seed, lower, upper, revolute)
+            if head is None or head[1] >= best_d:
+                continue
+            for wrist in self._wrist_one(arm_q, seed):
+                tail = _nearest_images(wrist, 3, seed, lower, upper, revolute)
+                if tail is not None and head[1] + tail[1] < best_d:
+                    best, best_d = head[0] + tail[0], head[1] + tail[1]
         if best is None:
             return None, 'beyond joint limits: every IK solution puts a joint outside its limits'
         return best, ''
