@@ -13,6 +13,7 @@ import threading
 import time
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -86,7 +87,8 @@ class SimNode(Node):
             self.declare_parameter('initial_positions', Parameter.Type.DOUBLE_ARRAY).value or [])
         return out
 
-    def _apply_newest_command(self):
+    def _apply_newest_command(self, t_state):
+        """Apply the newest command, moved on from its stamp to ``t_state`` (the servo's time)."""
         msg = self.commands.take()
         if msg is None or msg is self._applied:
             return
@@ -97,36 +99,43 @@ class SimNode(Node):
                 if len(msg.velocity) else None
             qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands effort') \
                 if len(msg.effort) else None
-            self.servo.command(q, qd, qdd)
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            self.servo.command(q, qd, qdd, age=t_state - stamp)
         except (ValueError, IndexError) as exc:
             self.get_logger().warn(f'ignoring joint_commands: {exc}', throttle_duration_sec=2.0)
 
     def _loop(self):
-        """Fixed-step servo at absolute deadlines; catches up when the OS wakes it late."""
+        """Fixed-step servo at absolute deadlines; catches up when the OS wakes it late.
+
+        Step ``k`` ends at ``t0 + k dt`` on the ROS clock: that is the stamp of the
+        state it produces, and commands are moved on to it from their own stamps.
+        """
         dt = self.servo.dt
         start = time.monotonic()
+        t0 = self.get_clock().now().nanoseconds * 1e-9
         done = 0
         while not self._stop.is_set():
             due = int((time.monotonic() - start) / dt) + 1 - done
             if due > 0:
                 with self.lock:
-                    self._apply_newest_command()
+                    self._apply_newest_command(t0 + done * dt)
                     for _ in range(due):
                         self.servo.step()
                         done += 1
                         if done % self.publish_every == 0:
-                            self._publish()
+                            self._publish(t0 + done * dt)
             next_deadline = start + (done + 1) * dt
             delay = next_deadline - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
 
-    def _publish(self):
+    def _publish(self, t_state):
         q = self.servo.q
         if self.noise_std > 0:
             q = q + self.rng.normal(0.0, self.noise_std, q.shape)
-        self.pub_states.publish(joint_state(self.names, self.get_clock().now().to_msg(), q, self.servo.qd,
-                                            self.servo.torque))
+        sec = int(t_state // 1)
+        stamp = Time(sec=sec, nanosec=min(int(round((t_state - sec) * 1e9)), 999_999_999))
+        self.pub_states.publish(joint_state(self.names, stamp, q, self.servo.qd, self.servo.torque))
 
     def close(self):
         self._stop.set()

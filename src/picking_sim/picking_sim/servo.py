@@ -109,15 +109,28 @@ class Servo:
     def n_joints(self):
         return self.q.size
 
-    def command(self, q, qd=None, qdd=None):
-        """Set the reference (position, and optionally velocity and acceleration feedforward)."""
+    def command(self, q, qd=None, qdd=None, age=0.0):
+        """Set the reference (position, and optionally velocity and acceleration feedforward).
+
+        ``age`` is how long ago the command was sampled, s (its stamp against the
+        servo's clock): the reference starts from where the command has moved
+        since, so transport delay does not make the arm lag. Ages beyond the
+        command timeout are not extrapolated (a stale command is only held).
+        """
         q = np.asarray(q, dtype=float)
         if q.shape != self.q.shape or not np.all(np.isfinite(q)):
             raise ValueError(f'reference must be {self.n_joints} finite positions')
-        self.ref_q = q.copy()
-        self.ref_qd = np.zeros_like(q) if qd is None else np.asarray(qd, dtype=float).copy()
-        self.ref_qdd = np.zeros_like(q) if qdd is None else np.asarray(qdd, dtype=float).copy()
-        self._since_command = 0
+        qd = np.zeros_like(q) if qd is None else np.asarray(qd, dtype=float)
+        qdd = np.zeros_like(q) if qdd is None else np.asarray(qdd, dtype=float)
+        if qd.shape != q.shape or qdd.shape != q.shape or not (np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd))):
+            raise ValueError(f'velocity and acceleration feedforward must be {self.n_joints} finite values')
+        age = float(age)
+        if not (np.isfinite(age) and 0.0 < age < self.command_timeout):
+            age = 0.0
+        self.ref_q = q + qd * age + 0.5 * qdd * age * age
+        self.ref_qd = qd + qdd * age
+        self.ref_qdd = qdd.copy()
+        self._since_command = int(age / self.dt)
 
     def step(self, steps=1):
         """Advance ``steps`` servo periods; between commands the reference moves on

@@ -26,6 +26,33 @@ def test_fig1_loop_tracks_a_quintic_with_feedforward_within_a_hundredth_of_a_deg
     assert np.degrees(errors[-1].max()) < 0.001
 
 
+def test_late_commands_are_moved_on_to_the_servo_time():
+    # Each command arrives 3 ms after it was sampled (transport delay): with its age the
+    # servo tracks as if it had none; without, it lags by velocity x delay.
+    traj = trajectory.quintic(np.zeros(2), [1.5, -1.0], 1.0)
+    delay = 0.003
+    worst = {}
+    for use_age in (True, False):
+        servo = Servo(np.zeros(2), params=ServoParams(max_velocity=5.0))
+        t = np.arange(0.0, 1.2, servo.dt)
+        q, qd, qdd = traj.sample(np.maximum(t - delay, 0.0))
+        err = []
+        for i in range(len(t)):
+            servo.command(q[i], qd[i], qdd[i], age=delay if use_age else 0.0)
+            servo.step()
+            err.append(np.abs(servo.q - traj.sample(t[i] + servo.dt)[0][0]).max())
+        worst[use_age] = np.degrees(max(err))
+    assert worst[True] < 0.02
+    assert worst[False] > 0.1
+
+
+def test_stale_or_bad_ages_are_not_extrapolated():
+    servo = Servo([0.0], command_timeout=0.05)
+    for age in (np.nan, -0.01, 0.2):
+        servo.command([1.0], [2.0], [0.0], age=age)
+        assert servo.ref_q[0] == 1.0
+
+
 def test_holds_its_position_without_commands():
     servo = Servo([0.3, -0.2])
     servo.step(2000)
