@@ -46,21 +46,26 @@ def cases():
     return out
 
 
+GOALS = {'jtraj': 3.0, 'mtraj(trapezoidal)': 10.0, 'mstraj': 10.0}
+
+
 def run(repeats=15):
-    """Rows: method, our median, p99, peer, peer median, speed-up."""
+    """Rows of the table (see run.py): our median and p99, the peer side by side, the goal."""
     rows = []
     for name, ours, peer_name, peer in cases():
         fns = {'ours': ours}
         if peer is not None:
             fns['peer'] = peer
         times = time_calls(fns, repeats=repeats)
-        row = [f'sample {name} ({N_STEPS:,} x {N_JOINTS})', fmt_time(median(times['ours'])),
-               fmt_time(p99(times['ours']))]
+        result = f'{fmt_time(median(times["ours"]))} (p99 {fmt_time(p99(times["ours"]))})'
+        goal = f'≥ {GOALS[peer_name]:g}x {peer_name}' if peer_name else '—'
         if peer is not None:
             ratio = median(times['peer']) / median(times['ours'])
-            row += [f'rtb {peer_name}', fmt_time(median(times['peer'])), f'{ratio:.1f}x']
+            detail = f'rtb {peer_name} {fmt_time(median(times["peer"]))}: {ratio:.1f}x'
+            verdict = 'met' if ratio >= GOALS[peer_name] else 'missed'
         else:
-            row += [f'rtb {peer_name}: not installed' if peer_name else '—', '—', '—']
-        rows.append(row)
-        print('  ' + ' | '.join(row), flush=True)
+            detail = f'rtb {peer_name}: not installed' if peer_name else '—'
+            verdict = '—'
+        rows.append(['1', f'sample {name} ({N_STEPS:,} x {N_JOINTS})', result, detail, goal, verdict])
+        print('  ' + ' | '.join(rows[-1]), flush=True)
     return rows

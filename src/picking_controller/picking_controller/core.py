@@ -86,7 +86,8 @@ class ControllerCore:
         if self.mode == 'waiting':
             self._hold_at(self.measured_q, now)
             self.mode = 'holding'
-            events.append(Event('OK', 'feedback received: holding the measured position',
+            events.append(Event('OK', 'feedback received: holding the measured position '
+                                      f'{self.measured_q.round(4).tolist()}',
                                 {'positions': self.measured_q.round(5).tolist()}))
         elif not self.feedback_ok:
             events.append(Event('OK', 'feedback restored: holding; send a new trajectory to move'))
@@ -133,8 +134,7 @@ class ControllerCore:
             return None
         # A tick that read the clock just before a new trajectory was loaded gets the
         # trajectory's start state (with its velocity), not the "before the start" hold.
-        q, qd, qdd = self.traj.sample(max(now - self.t0, self.traj.start_time))
-        return q[0], qd[0], qdd[0]
+        return self.traj.state_at(max(now - self.t0, self.traj.start_time))
 
     def tick(self, now):
         """The watchdog; returns events (feedback lost)."""

@@ -1,9 +1,11 @@
 """``picking-controller``: the joint trajectory controller node (ROS shell around core.py).
 
 Subscribes ``joint_trajectory`` and ``joint_states``; publishes ``joint_commands``
-at ``update_rate`` from a timing thread with absolute deadlines, and
+at ``update_rate`` from a timing thread with absolute deadlines,
 ``controller_status`` for every accepted or rejected trajectory, goal reached,
-tolerance violation, and feedback lost or restored.
+tolerance violation, and feedback lost or restored, and ``controller_loop``
+once a second: how well the loop keeps its clock since it began commanding
+(achieved rate, period error percentiles, missed deadlines, CPU).
 
 ``joint_commands`` carries position (rad), velocity (rad/s) and, in ``effort``,
 the reference acceleration (rad/s^2) as feedforward for the servo.
@@ -17,15 +19,17 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import ERROR, OK, WARN, joint_state, reorder, run_node, status
+from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, make_realtime, reorder,
+                                        run_node, status)
 
 from .core import ControllerCore, Tolerances
+from .timing import LoopStats
 
 LEVELS = {'OK': OK, 'WARN': WARN, 'ERROR': ERROR}
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -43,6 +47,9 @@ class ControllerNode(Node):
         get = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
         urdf = get('urdf_path', '')
         self.rate = float(get('update_rate', 1000.0))
+        self.thread_priority = int(get('thread_priority', 0))
+        if not 0 <= self.thread_priority <= 99:
+            raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         if not self.rate > 0:
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
         tol = Tolerances(path=get('path_tolerance', 0.1), goal=get('goal_tolerance', 0.005),
@@ -55,17 +62,25 @@ class ControllerNode(Node):
         self.lock = threading.Lock()
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
+        self.pub_loop = self.create_publisher(DiagnosticStatus, 'controller_loop', RELIABLE)
+        self.loop_stats = LoopStats(1.0 / self.rate)
+        self._commanding = False
+        self.create_timer(1.0, self._report_loop)
         self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE)
-        self.create_subscription(JointState, 'joint_states', self._on_state, qos_profile_sensor_data)
-        self.ticks = 0
-        self.late = 0
+        # The control thread takes the newest joint_states itself at each tick: no
+        # executor callbacks (and no GIL held by another thread) at the state's rate.
+        self.states = LatestMessage(self, JointState, 'joint_states')
+        self._last_state = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name='control', daemon=True)
         self._thread.start()
         self.get_logger().info(f'controlling {len(self.core.names)} joints at {self.rate:g} Hz; waiting for joint_states')
 
-    def now(self):
-        return self.get_clock().now().nanoseconds * 1e-9
+    @staticmethod
+    def now():
+        """The controller's clock, s: the system clock (what the ROS clock reads without sim time;
+        a 1 kHz loop runs on real time)."""
+        return time.time_ns() * 1e-9
 
     def _report(self, events):
         for e in events:
@@ -102,32 +117,52 @@ class ControllerNode(Node):
 
     def _loop(self):
         """The control loop: absolute deadlines, so the rate does not drift."""
+        make_realtime(self.thread_priority, self.get_logger())
         period = 1.0 / self.rate
         next_t = time.monotonic()
-        names = self.core.names
+        stats = self.loop_stats
+        # One command message, refilled at every tick (publish serialises it at once).
+        cmd = joint_state(self.core.names, None, [], [], [])
         while not self._stop.is_set():
+            stats.record(time.monotonic())
             next_t += period
-            stamp = self.get_clock().now()
-            now = stamp.nanoseconds * 1e-9
+            state = self.states.take()
+            if state is not self._last_state:
+                self._last_state = state
+                self._on_state(state)
+            ns = time.time_ns()                  # the controller's clock (see now())
+            now = ns * 1e-9
             with self.lock:
                 events = self.core.tick(now)
                 ref = self.core.reference(now)
             if events:
                 self._report(events)
             if ref is not None:
+                if not self._commanding:            # the loop figures count from the first command
+                    self._commanding = True
+                    stats.reset()
                 # Stamped with the time the reference was sampled at: the tick's time.
-                self.pub_cmd.publish(joint_state(names, stamp.to_msg(), *ref))
-            self.ticks += 1
+                cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+                cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
+                self.pub_cmd.publish(cmd)
             delay = next_t - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
             elif delay < -period:
-                self.late += 1
                 next_t = time.monotonic()        # too far behind: resynchronise, do not burst
+
+    def _report_loop(self):
+        if self._commanding:
+            s = self.loop_stats.summary()
+            level = OK if s['missed_percent'] < 0.1 else WARN
+            self.pub_loop.publish(status('picking_controller', level, LoopStats.describe(s), **s))
 
     def close(self):
         self._stop.set()
         self._thread.join(timeout=1.0)
+        self.states.destroy()
+        if self._commanding:
+            self.get_logger().info('control loop: ' + LoopStats.describe(self.loop_stats.summary()))
 
 
 def main(args=None):

@@ -23,7 +23,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -36,7 +36,7 @@ from .ros_common import ERROR, OK, LatestMessage, reorder, run_node, status
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
-            'cartesian_accel', 'cartesian_profile', 'max_joint_step')
+            'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
         'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy',
         'place_yaw_free')
@@ -73,18 +73,17 @@ class PlannerNode(Node):
         self.add_on_set_parameters_callback(self._on_parameters)
 
         self.lock = threading.Lock()
-        self.measured = None          # (q, time)
         self.pending = []             # goals that came before the first joint_states
-        self.create_timer(0.1, self._expire_pending)
-        self.gripper = None           # measured finger opening, m (if the arm has a gripper)
+        self.create_timer(0.1, self._serve_pending)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, RELIABLE)
         self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, RELIABLE)
         self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, RELIABLE)
-        self.create_subscription(JointState, 'joint_states', self._on_state, qos_profile_sensor_data)
-        # The controller's reference, taken when a goal comes (no 1 kHz callbacks).
+        # The measured state and the controller's reference, taken when a goal comes: no
+        # executor callbacks at their rates (rclpy spends about a millisecond on each).
+        self.states = LatestMessage(self, JointState, 'joint_states')
         self.commands = LatestMessage(self, JointState, 'joint_commands')
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
@@ -120,18 +119,22 @@ class PlannerNode(Node):
     def _now(self):
         return time.monotonic()
 
-    def _on_state(self, msg):
+    def measured(self):
+        """The newest valid joint_states: ``(q, gripper opening or None)``, or None before any."""
+        msg = self.states.take()
+        if msg is None:
+            return None
         try:
             q = reorder(msg.name, msg.position, self.names, 'joint_states')
         except (ValueError, IndexError):
-            return
-        if np.all(np.isfinite(q)):
-            self.measured = (q, self._now())
-            while self.pending:
-                self._handle(*self.pending.pop(0)[:3])
+            return None
+        if not np.all(np.isfinite(q)):
+            return None
+        gripper = None
         if 'gripper_joint' in msg.name:
             g = msg.position[list(msg.name).index('gripper_joint')]
-            self.gripper = g if np.isfinite(g) else None
+            gripper = g if np.isfinite(g) else None
+        return q, gripper
 
     def _reference(self):
         """The controller's newest reference ``(q, qd, qdd, stamp)`` if fresh, else None."""
@@ -160,7 +163,8 @@ class PlannerNode(Node):
         the plan's clock is the controller's. While the controller publishes a
         fresh reference, the start state is that reference extrapolated from
         its stamp to the start time; otherwise the measured state, at rest.
-        ``reference`` and ``measured`` are snapshots taken when the goal came.
+        ``reference`` and ``measured`` (from :meth:`measured`) are snapshots taken
+        when the goal came.
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
@@ -180,23 +184,28 @@ class PlannerNode(Node):
                              '(no TF here: give poses in the base frame, or leave frame_id empty)')
 
     def _on_goal_pose(self, msg):
-        self._handle('pose', msg.header, lambda start: self.planner.plan_pose(start, self._pose(msg)))
+        self._handle('pose', msg.header, lambda start, _: self.planner.plan_pose(start, self._pose(msg)))
 
     def _on_goal_path(self, msg):
-        def plan(start):
+        def plan(start, _):
             if not msg.poses:
                 raise ValueError('goal_path has no poses')
             return self.planner.plan_path(start, [msg_pose(p) for p in msg.poses])
         self._handle('path', msg.header, plan)
 
     def _on_pick_target(self, msg):
-        self._handle('pick', msg.header, lambda start: PickCycle(self.planner, self.pick).plan(
-            start, self._pose(msg), gripper_start=self.gripper))
+        self._handle('pick', msg.header, lambda start, gripper: PickCycle(self.planner, self.pick).plan(
+            start, self._pose(msg), gripper_start=gripper))
 
     def _pose(self, msg):
         return msg_pose(msg.pose)
 
-    def _expire_pending(self):
+    def _serve_pending(self):
+        """Goals that came before the first joint_states: planned once a state comes, refused after 2 s."""
+        if self.pending and self.measured() is not None:
+            waiting, self.pending = self.pending, []
+            for kind, header, plan_fn, _ in waiting:
+                self._handle(kind, header, plan_fn)
         while self.pending and self._now() - self.pending[0][3] > 2.0:
             kind, header, _, _ = self.pending.pop(0)
             self._refuse(kind, stamp_key(header.stamp),
@@ -209,7 +218,8 @@ class PlannerNode(Node):
 
     def _handle(self, kind, header, plan_fn):
         key = stamp_key(header.stamp)
-        if self.measured is None:
+        measured = self.measured()
+        if measured is None:
             # Just started: discovery of the arm's joint_states may still be running.
             self.pending.append((kind, header, plan_fn, self._now()))
             return
@@ -219,10 +229,9 @@ class PlannerNode(Node):
                 self._check_frame(header)
                 delay = self.get_parameter('start_delay').value
                 ref = self._reference()
-                measured = self.measured
                 for _ in range(4):
                     start, source, t_start = self.start_state(delay, ref, measured)
-                    plan = plan_fn(start)
+                    plan = plan_fn(start, measured[1])
                     # Planning must finish before the plan's start; else plan again, further ahead.
                     if self.get_clock().now().nanoseconds * 1e-9 < t_start - 0.01:
                         break
@@ -288,6 +297,7 @@ class PlannerNode(Node):
 
 
     def close(self):
+        self.states.destroy()
         self.commands.destroy()
 
 

@@ -24,7 +24,7 @@ from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
 
 LIFT_METHODS = ('line', 'arc')
-TRANSFER_METHODS = ('via_lspb', 'quintic_via')
+TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
 
 
 @dataclass(frozen=True)
@@ -44,8 +44,8 @@ class PickSettings:
         stem less).
     approach_method : str
         Joint-space profile of the moves to P0 and P1: ``lspb`` (the paper's linear
-        segments with parabolic blends, the fastest within the limits), ``quintic`` or
-        ``cubic``.
+        segments with parabolic blends, the fastest of the paper's profiles),
+        ``quintic``, ``cubic`` or ``optimal`` (jerk-limited and time-optimal, Ruckig).
     grasp_time, release_time : float
         Dwells while the gripper closes and opens, s.
     box_position : list of float
@@ -59,7 +59,7 @@ class PickSettings:
         the planner choose that turn (in 30 degree steps) for the quickest transfer
         and return.
     transfer_method : str
-        ``via_lspb`` or ``quintic_via`` for the transfer and the return.
+        ``via_lspb``, ``quintic_via`` or ``optimal`` for the transfer and the return.
     transfer_lift : float
         The transfer's via point is the joint-space midpoint with the shoulder lifted
         back by this much, rad (clearance over the canopy and the box rim).

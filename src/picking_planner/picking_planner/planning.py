@@ -7,11 +7,17 @@ reachability first (the paper's step C) and refuses with the reason.
 
 Methods
 -------
-Pose goals (``method``): ``cubic``, ``quintic``, ``lspb`` (joint space) or
-``line`` (Cartesian straight line, orientation slerped).
-Path goals (``path_method``): ``via_lspb`` (Fig. 12) or ``quintic_via`` through
+Pose goals (``method``): ``cubic``, ``quintic``, ``lspb`` (joint space, the
+paper's profiles), ``optimal`` (joint space, jerk-limited and time-optimal, by
+Ruckig) or ``line`` (Cartesian straight line, orientation slerped).
+Path goals (``path_method``): ``via_lspb`` (Fig. 12), ``quintic_via`` or
+``optimal`` (jerk-limited segments that pass the via points at speed) through
 the IK of every pose, ``line`` (straight lines pose to pose, stopping at each),
 or ``arc`` (3-point arc, Sec. 2.3).
+
+With ``limit_jerk`` set, lines, arcs and quintic moves are also stretched until
+every joint keeps its jerk limit; cubic and LSPB moves step their acceleration
+(an unbounded jerk) and are refused then.
 """
 
 from __future__ import annotations
@@ -25,9 +31,13 @@ from . import geometry, trajectory
 from .kinematics import Unreachable, cartesian_to_joint
 from .kinematics.paths import check_joint_limits
 
-JOINT_METHODS = ('cubic', 'quintic', 'lspb')
+JOINT_METHODS = ('cubic', 'quintic', 'lspb', 'optimal')
 POSE_METHODS = JOINT_METHODS + ('line',)
-PATH_METHODS = ('via_lspb', 'quintic_via', 'line', 'arc')
+PATH_METHODS = ('via_lspb', 'quintic_via', 'optimal', 'line', 'arc')
+#: Profiles whose acceleration steps (unbounded jerk): refused when ``limit_jerk`` is set.
+JERK_UNBOUNDED = ('cubic', 'lspb', 'via_lspb')
+#: Jerk limit assumed for joints that have none, per second times their acceleration limit.
+DEFAULT_JERK_PER_ACCEL = 10.0
 
 #: Plans use at most this fraction of the scaled limits, so that the controller's spline
 #: through the 10 ms points (which can overshoot the plan by a hair) never crosses a limit.
@@ -60,6 +70,9 @@ class PlannerSettings:
         ends), ``lspb`` or ``cubic``.
     max_joint_step : float
         Jump threshold of Cartesian paths, rad per sample.
+    limit_jerk : bool
+        Keep every segment within the joints' jerk limits too (lines, arcs and
+        quintic moves are stretched; cubic and LSPB moves are refused).
     """
 
     method: str = 'quintic'
@@ -71,6 +84,7 @@ class PlannerSettings:
     cartesian_accel: float = 4.0
     cartesian_profile: str = 'quintic'
     max_joint_step: float = 0.25
+    limit_jerk: bool = False
 
     def validate(self):
         if self.method not in POSE_METHODS:
@@ -88,6 +102,13 @@ class PlannerSettings:
                 raise ValueError(f'{name} must be > 0, got {value}')
         if not (np.isfinite(self.duration) and self.duration >= 0):
             raise ValueError(f'duration must be >= 0 s (0: shortest within limits), got {self.duration}')
+        if not isinstance(self.limit_jerk, (bool, np.bool_)):
+            raise ValueError(f'limit_jerk must be true or false, got {self.limit_jerk!r}')
+        if self.limit_jerk:
+            for name in ('method', 'path_method'):
+                if getattr(self, name) in JERK_UNBOUNDED:
+                    raise ValueError(f'{name} {getattr(self, name)} steps the acceleration (unbounded jerk): '
+                                     'with limit_jerk choose optimal or quintic')
         return self
 
 
@@ -168,6 +189,12 @@ class Planner:
         a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
         return a * (self.settings.speed_scale ** 2) * PLAN_MARGIN
 
+    @property
+    def _jmax(self):
+        a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
+        j = np.where(np.isfinite(self.arm.max_jerk), self.arm.max_jerk, DEFAULT_JERK_PER_ACCEL * a)
+        return j * (self.settings.speed_scale ** 3) * PLAN_MARGIN
+
     def shortest_duration(self, q0, qf, method):
         """The shortest time in which every joint makes its move within the scaled limits, s."""
         h = np.abs(np.asarray(qf, float) - np.asarray(q0, float))
@@ -185,8 +212,20 @@ class Planner:
         q, qd, qdd = traj.sample(t)
         try:
             check_joint_limits(self.arm, t, q, qd, qdd, slack=1e-6)
+            if self.settings.limit_jerk:
+                self._check_jerk(traj, t)
         except Unreachable as exc:
             raise Unreachable(f'{label}: {exc}') from None
+
+    def _jerk_ratio(self, traj, t):
+        """Largest |jerk| over the scaled jerk limit along ``traj`` at times ``t``."""
+        jerk = np.abs(traj.jerk(t))[:, :self.arm.dof]
+        return float(np.max(jerk / self._jmax)) if jerk.size else 0.0
+
+    def _check_jerk(self, traj, t):
+        over = self._jerk_ratio(traj, t)
+        if over > 1.0 / PLAN_MARGIN + 1e-6:
+            raise Unreachable(f'jerk limit broken: {over * PLAN_MARGIN:.2f} times the limit; slow the motion down')
 
     # -- the start ----------------------------------------------------------------------
     def _from_rest(self, start):
@@ -211,6 +250,14 @@ class Planner:
         """A joint-space move between configurations within the limits."""
         if method not in JOINT_METHODS:
             raise ValueError(f'unknown joint method {method!r}; choose one of {", ".join(JOINT_METHODS)}')
+        if self.settings.limit_jerk and method in JERK_UNBOUNDED:
+            raise ValueError(f'{method} moves step the acceleration (unbounded jerk): with limit_jerk choose '
+                             'optimal or quintic')
+        if method == 'optimal':
+            traj = trajectory.time_optimal(q0, qf, self._vmax, self._amax, self._jmax, v0, a0,
+                                           min_duration=duration or self.settings.duration or 0.0)
+            self._check(traj, 'optimal move')
+            return traj
         T = duration or self.settings.duration or self.shortest_duration(q0, qf, method)
         if method == 'cubic':
             traj = trajectory.cubic(q0, qf, T, 0.0 if v0 is None else v0)
@@ -236,8 +283,8 @@ class Planner:
             cart = [(len(parts) - 1, path)]
             return self._join(parts, 'line', cart)
         q_goal = self.arm.check_reachable(T_goal, seed=q)
-        if method in ('cubic', 'quintic'):
-            traj = self.joint_move(q, q_goal, method, v0=qd, a0=qdd if method == 'quintic' else None)
+        if method in ('cubic', 'quintic', 'optimal'):
+            traj = self.joint_move(q, q_goal, method, v0=qd, a0=qdd if method != 'cubic' else None)
             return self._join([('move', method, traj)], method)
         stop, q_rest = self._from_rest(start)
         parts = ([('brake', 'quintic', stop)] if stop is not None else [])
@@ -257,6 +304,9 @@ class Planner:
                                     check_limits=False)
             over = max(float(np.max(jp.peak_velocity / self._vmax)),
                        float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
+            if s.limit_jerk:
+                grid = np.linspace(0.0, T, max(50, int(T / 0.0025)))
+                over = max(over, self._jerk_ratio(jp.trajectory, grid) ** (1.0 / 3.0))
             if over <= 1.0:
                 t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
                 check_joint_limits(self.arm, t, *jp.trajectory.sample(t))
@@ -303,7 +353,7 @@ class Planner:
         stop, q = self._from_rest(start)
         parts = [('brake', 'quintic', stop)] if stop is not None else []
         cart = []
-        if method in ('via_lspb', 'quintic_via'):
+        if method in ('via_lspb', 'quintic_via', 'optimal'):
             qs = [q]
             for i, T in enumerate(poses):
                 try:
@@ -342,6 +392,8 @@ class Planner:
         it for via-point LSPB, which passes its via points at speed); the durations
         then grow by 4 % until the blends fit and every limit holds.
         """
+        if method == 'optimal':
+            return self._optimal_via(np.asarray(qs, float))
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
         durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
         if method == 'via_lspb' and len(durations) > 1:
@@ -361,3 +413,24 @@ class Planner:
                 last = exc
                 durations = durations * 1.04
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')
+
+    def _optimal_via(self, qs):
+        """Jerk-limited, time-optimal segments through via points, passed at speed.
+
+        A joint passes a via point at the mean of its neighbouring chords' speeds
+        (chords timed rest to rest) where both go the same way, and stops where it
+        turns back; each segment is then Ruckig's fastest move between those states.
+        """
+        if len(qs) == 2:
+            return self.joint_move(qs[0], qs[1], 'optimal')
+        chords = np.array([self.shortest_duration(a, b, 'lspb') for a, b in zip(qs[:-1], qs[1:])])
+        slopes = np.diff(qs, axis=0) / chords[:, None]
+        v = np.zeros_like(qs)
+        onward = np.sign(slopes[:-1]) == np.sign(slopes[1:])
+        v[1:-1] = np.where(onward, 0.5 * (slopes[:-1] + slopes[1:]), 0.0)
+        v = np.clip(v, -self._vmax, self._vmax)
+        parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], None,
+                                         v[i + 1], None) for i in range(len(qs) - 1)]
+        traj = trajectory.concatenate(parts)
+        self._check(traj, 'optimal via points')
+        return traj

@@ -5,6 +5,9 @@ This is ROS glue (it imports rclpy), kept out of the pure core.
 
 from __future__ import annotations
 
+import functools
+import gc
+import os
 import signal
 import sys
 import threading
@@ -32,6 +35,9 @@ def run_node(make_node, args=None):
     def on_signal(signum, frame):
         stop.set()
 
+    # A real-time loop thread that wakes while another thread runs Python code waits
+    # for the GIL up to the switch interval (5 ms by default): keep that short.
+    sys.setswitchinterval(1e-4)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = executor = None
@@ -42,6 +48,11 @@ def run_node(make_node, args=None):
             # A bad parameter or file: say what, exit non-zero, no traceback.
             print(f'{sys.argv[0]}: {exc}', file=sys.stderr)
             return 2
+        # Everything loaded so far lives as long as the process: keep it out of the
+        # garbage collector's full passes, which would otherwise stall a loop thread
+        # for milliseconds.
+        gc.collect()
+        gc.freeze()
         # One executor thread: rclpy's multi-threaded executor costs far more per
         # callback, and each node's real-time loop runs in a thread of its own.
         executor = SingleThreadedExecutor()
@@ -63,6 +74,23 @@ def run_node(make_node, args=None):
         for sig, handler in old.items():
             signal.signal(sig, handler)
     return 0
+
+
+def make_realtime(priority, logger):
+    """Run the calling thread under SCHED_FIFO at ``priority`` (1-99); 0 leaves it alone.
+
+    Needs CAP_SYS_NICE or an rtprio limit (``ulimit -r``); without them it says so
+    and goes on at normal priority. Returns True when the thread is real-time.
+    """
+    if priority <= 0:
+        return False
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+    except (PermissionError, OSError, AttributeError) as exc:
+        logger.warning(f'could not run the loop thread under SCHED_FIFO priority {priority} ({exc}); '
+                       'running at normal priority (grant CAP_SYS_NICE or an rtprio limit to use it)')
+        return False
+    return True
 
 
 def status(name, level, message, **values):
@@ -90,8 +118,10 @@ def status_values(msg):
 
 
 def joint_state(names, stamp, position, velocity=None, effort=None):
+    """A JointState; ``stamp`` a builtin_interfaces Time (None: left zero)."""
     msg = JointState()
-    msg.header.stamp = stamp
+    if stamp is not None:
+        msg.header.stamp = stamp
     msg.name = list(names)
     msg.position = [float(x) for x in position]
     if velocity is not None:
@@ -103,12 +133,18 @@ def joint_state(names, stamp, position, velocity=None, effort=None):
 
 def reorder(msg_names, values, names, what):
     """Values given in ``msg_names`` order, in ``names`` order; ValueError if any is missing."""
+    values = np.asarray(values, dtype=float)
+    return values[..., _order(tuple(msg_names), tuple(names), what)]
+
+
+@functools.lru_cache(maxsize=64)
+def _order(msg_names, names, what):
+    """Where each of ``names`` sits in ``msg_names`` (cached: a stream repeats its names)."""
     index = {n: i for i, n in enumerate(msg_names)}
     missing = [n for n in names if n not in index]
     if missing:
         raise ValueError(f'{what} lacks joints {missing}')
-    values = np.asarray(values, dtype=float)
-    return values[..., [index[n] for n in names]]
+    return np.array([index[n] for n in names], dtype=np.intp)
 
 
 class LatestMessage:

@@ -179,3 +179,15 @@ def test_concatenate_composes_segments_and_refuses_a_gap():
     assert whole.sample([1.0, 1.25, 3.5])[0][:, 0] == pytest.approx([1.0, 1.0, 0.0])
     with pytest.raises(ValueError, match='does not start where'):
         trajectory.concatenate([a, trajectory.cubic(2.0, 3.0, 1.0)])
+
+
+@given(via_paths(), st.lists(st.floats(-0.5, 1.5), min_size=1, max_size=20))
+@settings(deadline=None)
+def test_state_at_is_sample_at_one_time(path, fractions):
+    """The controller's per-tick fast path gives exactly what the vectorised sampler gives."""
+    points, durations = path
+    traj = trajectory.via_lspb(points, durations, 1e6)
+    times = [f * traj.duration for f in fractions] + traj.breaks.tolist()
+    for t in times:
+        for fast, full in zip(traj.state_at(t), traj.sample(t)):
+            assert fast == pytest.approx(full[0], rel=1e-12, abs=1e-9)

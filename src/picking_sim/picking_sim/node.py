@@ -22,7 +22,7 @@ from std_msgs.msg import String
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import LatestMessage, joint_state, reorder, run_node
+from picking_planner.ros_common import LatestMessage, joint_state, make_realtime, reorder, run_node
 
 from .servo import Servo, ServoParams
 
@@ -54,6 +54,9 @@ class SimNode(Node):
         self.servo = Servo(q0, dt=1.0 / p['servo_rate'], params=params,
                            command_timeout=p['command_timeout'])
         self.noise_std = float(p['noise_std'])
+        self.thread_priority = int(p['thread_priority'])
+        if not 0 <= self.thread_priority <= 99:
+            raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         self.rng = np.random.default_rng()
         self.publish_every = max(1, int(round(p['servo_rate'] / p['publish_rate'])))
         self.lock = threading.Lock()
@@ -77,7 +80,7 @@ class SimNode(Node):
             'noise_std': 0.0, 'command_timeout': 0.05,
             'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
             'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
-            'servo.velocity_margin': 1.2,
+            'servo.velocity_margin': 1.2, 'thread_priority': 0,
         }
         out = {}
         for name, value in defaults.items():
@@ -110,6 +113,7 @@ class SimNode(Node):
         Step ``k`` ends at ``t0 + k dt`` on the ROS clock: that is the stamp of the
         state it produces, and commands are moved on to it from their own stamps.
         """
+        make_realtime(self.thread_priority, self.get_logger())
         dt = self.servo.dt
         start = time.monotonic()
         t0 = self.get_clock().now().nanoseconds * 1e-9

@@ -104,6 +104,8 @@ class Servo:
         self.ref_q, self.ref_qd, self.ref_qdd = self.q.copy(), np.zeros(n), np.zeros(n)
         self._since_command = 0
         self._hold_after = max(1, int(round(self.command_timeout / self.dt)))
+        # Anti-windup: the integral never asks for more than the torque limit.
+        self._integral_limit = self.max_torque / np.maximum(self.ki, 1e-12)
 
     @property
     def n_joints(self):
@@ -118,17 +120,21 @@ class Servo:
         command timeout are not extrapolated (a stale command is only held).
         """
         q = np.asarray(q, dtype=float)
-        if q.shape != self.q.shape or not np.all(np.isfinite(q)):
+        if q.shape != self.q.shape or not np.isfinite(q.sum()):
             raise ValueError(f'reference must be {self.n_joints} finite positions')
         qd = np.zeros_like(q) if qd is None else np.asarray(qd, dtype=float)
         qdd = np.zeros_like(q) if qdd is None else np.asarray(qdd, dtype=float)
-        if qd.shape != q.shape or qdd.shape != q.shape or not (np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd))):
+        # One sum is finite only if every term is.
+        if qd.shape != q.shape or qdd.shape != q.shape or not np.isfinite(qd.sum() + qdd.sum()):
             raise ValueError(f'velocity and acceleration feedforward must be {self.n_joints} finite values')
         age = float(age)
         if not (np.isfinite(age) and 0.0 < age < self.command_timeout):
             age = 0.0
-        self.ref_q = q + qd * age + 0.5 * qdd * age * age
-        self.ref_qd = qd + qdd * age
+        if age:
+            self.ref_q = q + qd * age + 0.5 * qdd * age * age
+            self.ref_qd = qd + qdd * age
+        else:
+            self.ref_q, self.ref_qd = q.copy(), qd.copy()
         self.ref_qdd = qdd.copy()
         self._since_command = int(age / self.dt)
 
@@ -139,9 +145,7 @@ class Servo:
         for _ in range(int(steps)):
             e = self.ref_q - self.q
             self.integral += e * dt
-            # Anti-windup: the integral never asks for more than the torque limit.
-            limit = self.max_torque / np.maximum(self.ki, 1e-12)
-            np.clip(self.integral, -limit, limit, out=self.integral)
+            np.clip(self.integral, -self._integral_limit, self._integral_limit, out=self.integral)
             tau = (self.kp * e + self.kd * (self.ref_qd - self.qd) + self.ki * self.integral
                    + self.inertia * self.ref_qdd + self.friction * self.ref_qd)
             np.clip(tau, -self.max_torque, self.max_torque, out=tau)

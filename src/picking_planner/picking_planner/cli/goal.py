@@ -49,11 +49,11 @@ def build_parser():
         p.add_argument('xyz', type=float, nargs=3, metavar=('X', 'Y', 'Z'), help='m, base_link')
         _orientation(p)
         if kind == 'pose':
-            p.add_argument('--method', help='cubic, quintic, lspb or line')
+            p.add_argument('--method', help='cubic, quintic, lspb, optimal or line')
     p = sub.add_parser('path', help='pass through several poses')
     p.add_argument('--pose', type=float, nargs=3, action='append', required=True, metavar=('X', 'Y', 'Z'))
     _orientation(p)
-    p.add_argument('--method', help='via_lspb, quintic_via, line or arc')
+    p.add_argument('--method', help='via_lspb, quintic_via, optimal, line or arc')
     p.add_argument('--arc', action='store_true', help='same as --method arc (2 poses: through, end)')
     for p in sub.choices.values():
         p.add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')

@@ -15,6 +15,7 @@ paper's examples); time is in seconds.
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from math import comb
 
 import numpy as np
@@ -49,7 +50,7 @@ class PiecewisePolynomial:
     rest, the way a controller holds its goal.
     """
 
-    __slots__ = ('_breaks', '_coeffs', '_stacked', '_end_state')
+    __slots__ = ('_breaks', '_coeffs', '_stacked', '_end_state', '_break_list', '_rows', '_zeros')
 
     def __init__(self, breaks, coeffs):
         breaks = np.array(breaks, dtype=float)
@@ -74,6 +75,10 @@ class PiecewisePolynomial:
         self._coeffs = padded
         self._stacked = _stack_derivatives(padded)
         self._end_state = None
+        self._break_list = breaks.tolist()
+        self._rows = np.ascontiguousarray(self._stacked.transpose(0, 2, 1))   # (m, 3n, 6)
+        self._zeros = np.zeros(coeffs.shape[2])
+        self._zeros.flags.writeable = False
 
     # -- shape and time -------------------------------------------------
     @property
@@ -157,6 +162,43 @@ class PiecewisePolynomial:
             qdd[outside] = 0.0
         return q, qd, qdd
 
+    def jerk(self, t):
+        """Third derivative at times ``t``, shape (N, n_joints) (zero outside the trajectory).
+
+        At a break, the segment that ends there (as in :meth:`sample`).
+        """
+        t = as_time_array(t)
+        b = self._breaks
+        k = np.clip(np.searchsorted(b, t, side='left') - 1, 0, len(b) - 2)
+        tau = (t - b[k])[:, None]
+        c = self._coeffs[k]                                       # (N, 6, n)
+        out = 6.0 * c[:, 3] + 24.0 * c[:, 4] * tau + 60.0 * c[:, 5] * tau * tau
+        out[(t < b[0]) | (t > b[-1])] = 0.0
+        return out
+
+    def state_at(self, t):
+        """``(q, qd, qdd)`` at one time ``t`` (a float), each shape (n_joints,).
+
+        The same values as ``sample(t)`` at a fraction of its cost: what a
+        controller calls at every tick (a bisection and one small product).
+        Arrays held after the end are shared and read-only.
+        """
+        b = self._break_list
+        n = self._coeffs.shape[2]
+        if not t <= b[-1]:                       # after the end (NaN too): hold the end, at rest
+            if self._end_state is None:
+                self.end_state()
+            return self._end_state[0], self._zeros, self._zeros
+        if not t > b[0]:
+            if t < b[0]:                         # before the start: hold the first point, at rest
+                return self._coeffs[0, 0].copy(), np.zeros(n), np.zeros(n)
+            return self.start_state()
+        k = bisect_left(b, t) - 1                # segment k covers (b[k], b[k+1]], as in sample()
+        tau = t - b[k]
+        tau2 = tau * tau
+        rows = self._rows[k] @ np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
+        return rows[:n], rows[n:2 * n], rows[2 * n:]
+
     def start_state(self):
         """``(q, qd, qdd)`` at the start, each shape (n_joints,)."""
         c = self._coeffs[0]
@@ -168,6 +210,8 @@ class PiecewisePolynomial:
             rows = np.empty((3 * self.n_joints, 1))
             _eval_block(np.array([self._breaks[-1] - self._breaks[-2]]), self._stacked[-1], rows)
             q, qd, qdd = np.split(rows[:, 0], 3)
+            for x in (q, qd, qdd):
+                x.flags.writeable = False
             self._end_state = (q, qd, qdd)
         return tuple(x.copy() for x in self._end_state)
 
@@ -243,8 +287,11 @@ def merge_joint_pieces(joint_breaks, joint_coeffs, rtol=1e-12):
 
     Returns
     -------
-    PiecewisePolynomial
-        Breaks at the union of all joints' boundaries.
+    breaks : ndarray, shape (K + 1,)
+        The union of all joints' boundaries.
+    coeffs : ndarray, shape (K, 6, n)
+        Every joint's polynomial on each interval of the union (for
+        :class:`PiecewisePolynomial`).
     """
     joint_breaks = np.asarray(joint_breaks, dtype=float)
     n_pieces, _, n = joint_coeffs.shape

@@ -1,0 +1,186 @@
+"""The nodes as processes: goal latency over DDS, the 1 kHz loop, several arms on one machine.
+
+Every process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the run's own
+ROS_DOMAIN_ID (set by run.py before rclpy loads), and is stopped by its pid.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'test'))
+
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+
+from harness import fmt_time  # noqa: E402
+from rosstack import Client, Stack, ensure_rclpy  # noqa: E402
+
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+# Two reachable tool positions near the home pose, visited in turn.
+POSES = ([0.55, 0.10, 0.45], [0.50, -0.10, 0.40])
+# What row 4 asks of a controller loop.
+P99_GOAL_US, MISSED_GOAL_PERCENT, CPU_GOAL_PERCENT = 100.0, 0.1, 30.0
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of a process so far, s (from /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+class Watcher:
+    """A client that also times trajectories and keeps the controller's loop figures."""
+
+    def __init__(self, ns):
+        self.client = Client(ns)
+        self.arrivals = []
+        self.loop = None
+        self.client.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE)
+        self.client.create_subscription(DiagnosticStatus, 'controller_loop', self._on_loop, RELIABLE)
+        self.event = threading.Event()
+
+    def _on_trajectory(self, msg):
+        self.arrivals.append(time.monotonic())
+        self.event.set()
+
+    def _on_loop(self, msg):
+        self.loop = {kv.key: float(kv.value) for kv in msg.values}
+
+    def close(self):
+        self.client.close()
+
+
+def _stacks(n, rate, log_dir):
+    rate_args = ('-p', f'update_rate:={rate}')
+    sim_args = ('-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}')
+    return [Stack(f'/bench{i}', log_dir, sim_args=sim_args, controller_args=rate_args) for i in range(n)]
+
+
+def goal_latency(n_goals=200, gap=0.05):
+    """Publish pose goals one by one; time from publish to the JointTrajectory's arrival."""
+    ensure_rclpy()
+    with tempfile.TemporaryDirectory() as log_dir:
+        (stack,) = _stacks(1, 1000.0, log_dir)
+        watcher = Watcher('/bench0')
+        try:
+            watcher.client.wait_ready(60.0)
+            lat, lost = [], 0
+            for i in range(n_goals + 5):
+                watcher.event.clear()
+                t0 = time.monotonic()
+                watcher.client.send_pose(POSES[i % 2])
+                if not watcher.event.wait(2.0):
+                    lost += 1
+                    continue
+                if i >= 5:                            # the first few warm the caches up
+                    lat.append(watcher.arrivals[-1] - t0)
+                time.sleep(gap)
+                if i % 50 == 0:
+                    print(f'    goal {i}/{n_goals + 5}', flush=True)
+        finally:
+            watcher.close()
+            codes = stack.stop()
+    lat = np.array(lat)
+    print(f'    {len(lat)} goals, {lost} without a trajectory, exit codes {codes}', flush=True)
+    return lat, lost
+
+
+def run_stacks(n, rate, seconds, goal_every=2.0):
+    """N stacks at ``rate`` Hz for ``seconds`` with a goal every ``goal_every`` s each.
+
+    Returns one dict per controller: its own loop figures (since it began
+    commanding) and its process CPU over the window, % of one core.
+    """
+    ensure_rclpy()
+    with tempfile.TemporaryDirectory() as log_dir:
+        stacks = _stacks(n, rate, log_dir)
+        watchers = []
+        try:
+            watchers = [Watcher(s.ns) for s in stacks]
+            for w in watchers:
+                w.client.wait_ready(90.0)
+            time.sleep(1.0)
+            cpu0 = [cpu_seconds(s.controller.pid) for s in stacks]
+            t0 = time.monotonic()
+            k = 0
+            while time.monotonic() - t0 < seconds:
+                for w in watchers:
+                    w.client.send_pose(POSES[k % 2])
+                k += 1
+                time.sleep(goal_every)
+            wall = time.monotonic() - t0
+            cpu = [100.0 * (cpu_seconds(s.controller.pid) - c) / wall for s, c in zip(stacks, cpu0)]
+            time.sleep(1.2)                           # one more loop report after the window
+            out = []
+            for w, c in zip(watchers, cpu):
+                figures = dict(w.loop or {})
+                figures['cpu_window_percent'] = c
+                out.append(figures)
+        finally:
+            for w in watchers:
+                w.close()
+            for s in stacks:
+                s.stop()
+    return out
+
+
+def meets_row4(f):
+    return (f.get('period_error_p99_us', np.inf) <= P99_GOAL_US
+            and f.get('missed_percent', np.inf) < MISSED_GOAL_PERCENT
+            and f.get('cpu_window_percent', np.inf) <= CPU_GOAL_PERCENT)
+
+
+def loop_row(figures, label):
+    f = figures
+    return [label, f'{f["rate_hz"]:.1f} Hz; period error p50 {f["period_error_p50_us"]:.0f} µs, '
+                   f'p99 {f["period_error_p99_us"]:.0f} µs, max {f["period_error_max_us"]:.0f} µs',
+            f'{f["missed"]:.0f} missed ({f["missed_percent"]:.3f} %); CPU {f["cpu_window_percent"]:.1f} % of a core',
+            'p99 ≤ 100 µs, < 0.1 % missed, ≤ 30 % CPU', 'met' if meets_row4(f) else 'missed']
+
+
+def arms(rate, max_n, seconds):
+    """The largest N (1..max_n) whose controllers all meet row 4; stops at the first failure."""
+    best, seen = 0, []
+    for n in range(1, max_n + 1):
+        figures = run_stacks(n, rate, seconds)
+        worst = max(figures, key=lambda f: (not meets_row4(f), f.get('period_error_p99_us', np.inf)))
+        ok = all(meets_row4(f) for f in figures)
+        seen.append(f'N={n}: worst p99 {worst.get("period_error_p99_us", np.nan):.0f} µs, '
+                    f'missed {worst.get("missed_percent", np.nan):.2f} %, CPU '
+                    f'{worst.get("cpu_window_percent", np.nan):.0f} %')
+        print(f'    {rate:g} Hz, {seen[-1]}', flush=True)
+        if not ok:
+            break
+        best = n
+    return best, seen
+
+
+def run(quick=False):
+    rows = []
+    print('  goal -> JointTrajectory over DDS:', flush=True)
+    lat, lost = goal_latency(40 if quick else 200)
+    rows.append([f'goal → JointTrajectory over DDS ({len(lat)} pose goals)',
+                 f'median {fmt_time(np.median(lat))}, p99 {fmt_time(np.percentile(lat, 99))}',
+                 f'max {fmt_time(lat.max())}; {lost} lost', 'p99 ≤ 10 ms',
+                 'met' if np.percentile(lat, 99) <= 0.010 and lost == 0 else 'missed'])
+    seconds = 10 if quick else 60
+    print(f'  the controller at 1 kHz for {seconds} s with the simulator and planner:', flush=True)
+    (figures,) = run_stacks(1, 1000.0, seconds)
+    rows.append(loop_row(figures, f'controller loop at 1 kHz, {seconds} s (one arm)'))
+    for rate, max_n in ((1000.0, 4), (250.0, 6)):
+        print(f'  arms side by side at {rate:g} Hz:', flush=True)
+        best, seen = arms(rate, max_n if not quick else 2, 8 if quick else 20)
+        rows.append([f'arms side by side at {rate:g} Hz (sim + controller + planner each)',
+                     f'{best} arm(s) meet row 4', '; '.join(seen), '4 arms at 1 kHz',
+                     ('met' if best >= 4 else 'missed') if rate == 1000.0 else '—'])
+    return rows

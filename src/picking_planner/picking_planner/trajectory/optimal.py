@@ -1,0 +1,104 @@
+"""Jerk-limited, time-optimal moves from the Ruckig library, as piecewise polynomials.
+
+Ruckig (Berscheid and Kröger, RSS 2021) computes, for every joint at once, the
+fastest motion between two states (position, velocity, acceleration) that keeps
+velocity, acceleration and jerk within their limits, all joints arriving
+together. Each joint's profile is at most seven constant-jerk phases (plus a
+braking pre-phase when the start state breaks a limit); every phase is a cubic
+in time, so the result is exactly a :class:`PiecewisePolynomial` -- sampled,
+concatenated and sent like every other profile here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_joint_vector
+from .piecewise import PiecewisePolynomial, merge_joint_pieces
+
+
+def _limits(value, n, name):
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f'{name} must be finite and > 0 for every joint, got {arr.tolist()}')
+    return arr
+
+
+def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=None, vf=None, af=None,
+                 min_duration=0.0):
+    """The fastest jerk-limited move from ``(q0, v0, a0)`` to ``(qf, vf, af)``.
+
+    Parameters
+    ----------
+    q0, qf : array_like, shape (n,)
+        Start and target positions.
+    max_velocity, max_acceleration, max_jerk : float or array_like, shape (n,)
+        Limits per joint (finite, > 0).
+    v0, a0, vf, af : array_like, shape (n,), optional
+        Start and target velocities and accelerations (default 0).
+    min_duration : float
+        Take at least this long, s (0: as fast as the limits allow).
+
+    Returns
+    -------
+    PiecewisePolynomial
+        Cubic phases, breaks at the union of every joint's phase boundaries.
+
+    Raises
+    ------
+    ValueError
+        For non-finite input, non-positive limits, or a target Ruckig cannot
+        reach within the limits (e.g. a target velocity above the limit).
+    """
+    from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+    q0 = as_joint_vector(q0, 'q0')
+    n = q0.size
+    qf = as_joint_vector(qf, 'qf', n)
+    states = [as_joint_vector(np.zeros(n) if x is None else x, name, n)
+              for x, name in ((v0, 'v0'), (a0, 'a0'), (vf, 'vf'), (af, 'af'))]
+    vmax = _limits(max_velocity, n, 'max_velocity')
+    amax = _limits(max_acceleration, n, 'max_acceleration')
+    jmax = _limits(max_jerk, n, 'max_jerk')
+    inp = InputParameter(n)
+    inp.current_position, inp.target_position = q0.tolist(), qf.tolist()
+    inp.current_velocity, inp.current_acceleration = states[0].tolist(), states[1].tolist()
+    inp.target_velocity, inp.target_acceleration = states[2].tolist(), states[3].tolist()
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = vmax.tolist(), amax.tolist(), jmax.tolist()
+    if not (np.isfinite(min_duration) and min_duration >= 0):
+        raise ValueError(f'min_duration must be >= 0 s, got {min_duration}')
+    if min_duration > 0:
+        inp.minimum_duration = float(min_duration)
+    traj = Trajectory(n)
+    try:
+        result = Ruckig(n).calculate(inp, traj)
+    except RuckigError as exc:                  # an input Ruckig refuses (e.g. a target beyond a limit)
+        raise ValueError(f'no jerk-limited move: {" ".join(str(exc).split())}') from None
+    if result != Result.Working and result != Result.Finished:
+        raise ValueError(f'no jerk-limited move reaches the target within the limits (Ruckig: {result.name})')
+    return _to_piecewise(traj, n)
+
+
+def _to_piecewise(traj, n):
+    """Ruckig's per-joint phases (brake pre-phase, seven jerk phases, a final hold) merged."""
+    duration = traj.duration
+    pieces = 10
+    breaks = np.zeros((pieces + 1, n))
+    coeffs = np.zeros((pieces, 6, n))
+    for j, prof in enumerate(traj.profiles[0]):
+        phases = []
+        brake = prof.brake
+        for k in range(2):
+            phases.append((brake.t[k], brake.p[k], brake.v[k], brake.a[k], brake.j[k]))
+        for k in range(7):
+            phases.append((prof.t[k], prof.p[k], prof.v[k], prof.a[k], prof.j[k]))
+        t = 0.0
+        for k, (dt, p, v, a, jerk) in enumerate(phases):
+            breaks[k, j] = t
+            coeffs[k, :4, j] = (p, v, 0.5 * a, jerk / 6.0)
+            t += dt
+        # Hold the end from this joint's finish to the common end (zero width when synchronised).
+        breaks[9, j] = t
+        coeffs[9, 0, j] = prof.p[7]
+        breaks[10, j] = max(t, duration)
+    return PiecewisePolynomial(*merge_joint_pieces(breaks, coeffs))

@@ -1,0 +1,109 @@
+"""The jerk-limited, time-optimal method (Ruckig) and the planner's limit_jerk setting."""
+
+import numpy as np
+import pytest
+
+ruckig = pytest.importorskip('ruckig')     # the optimal method's one extra dependency (pip install ruckig)
+
+from ruckig import InputParameter, Ruckig, Trajectory  # noqa: E402
+
+from picking_planner import trajectory  # noqa: E402
+from picking_planner.kinematics import Unreachable, pose_matrix  # noqa: E402
+from picking_planner.pick_cycle import PickCycle, PickSettings  # noqa: E402
+from picking_planner.planning import Planner, PlannerSettings  # noqa: E402
+
+V, A, J = np.full(3, 2.0), np.full(3, 6.0), np.full(3, 60.0)
+HOME = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
+Z = np.zeros(6)
+APPLE = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])
+
+
+def _ruckig(q0, qf, v0, a0):
+    inp = InputParameter(3)
+    inp.current_position, inp.target_position = list(q0), list(qf)
+    inp.current_velocity, inp.current_acceleration = list(v0), list(a0)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = list(V), list(A), list(J)
+    out = Trajectory(3)
+    Ruckig(3).calculate(inp, out)
+    return out
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_the_piecewise_polynomial_is_ruckigs_trajectory(seed):
+    rng = np.random.default_rng(seed)
+    q0, qf = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)
+    v0, a0 = (rng.uniform(-1.5, 1.5, 3), rng.uniform(-5, 5, 3)) if seed % 2 else (np.zeros(3), np.zeros(3))
+    ours = trajectory.time_optimal(q0, qf, V, A, J, v0, a0)
+    ref = _ruckig(q0, qf, v0, a0)
+    assert ours.duration == pytest.approx(ref.duration, abs=1e-9)
+    for t in np.linspace(0.0, ref.duration, 57):
+        q, qd, qdd = ours.sample(t)
+        p, v, a = ref.at_time(t)
+        assert q[0] == pytest.approx(p, abs=1e-9)
+        assert qd[0] == pytest.approx(v, abs=1e-8)
+        assert qdd[0] == pytest.approx(a, abs=1e-6)
+
+
+def test_limits_hold_and_one_limit_is_used():
+    traj = trajectory.time_optimal([0, 0, 0], [1.5, -0.4, 0.1], V, A, J)
+    t = np.linspace(0, traj.duration, 5001)
+    _, qd, qdd = traj.sample(t)
+    jerk = traj.jerk(t)
+    assert np.all(np.abs(qd) <= V + 1e-9) and np.all(np.abs(qdd) <= A + 1e-9) and np.all(np.abs(jerk) <= J + 1e-9)
+    assert np.abs(qd[:, 0]).max() == pytest.approx(2.0, rel=1e-6)        # the long joint cruises at its limit
+    assert traj.end_state()[0] == pytest.approx([1.5, -0.4, 0.1], abs=1e-12)
+
+
+def test_minimum_duration_and_refusals():
+    slow = trajectory.time_optimal([0.0], [0.1], 2.0, 6.0, 60.0, min_duration=3.0)
+    assert slow.duration == pytest.approx(3.0)
+    for bad in (dict(max_velocity=0.0), dict(max_jerk=np.inf), dict(max_acceleration=-1.0)):
+        kwargs = {**dict(max_velocity=2.0, max_acceleration=6.0, max_jerk=60.0), **bad}
+        with pytest.raises(ValueError):
+            trajectory.time_optimal([0.0], [1.0], **kwargs)
+    with pytest.raises(ValueError):
+        trajectory.time_optimal([np.nan], [1.0], 2.0, 6.0, 60.0)
+    with pytest.raises(ValueError):
+        trajectory.time_optimal([0.0], [1.0], 2.0, 6.0, 60.0, vf=[5.0])     # a target beyond the limit
+    with pytest.raises(ValueError):
+        trajectory.time_optimal([0.0], [1.0], 2.0, 6.0, 60.0, min_duration=-1.0)
+
+
+def _jerk_ok(arm, plan):
+    t = np.linspace(0, plan.duration, 20000)
+    jerk = np.abs(plan.trajectory.jerk(t))[:, :arm.dof]
+    return np.all(jerk <= arm.max_jerk * (1 + 1e-6))
+
+
+def test_optimal_pose_goal_from_a_moving_start_keeps_every_limit(arm):
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal'))
+    qd0 = np.array([0.5, -0.3, 0.2, 0.0, 0.4, 0.0])
+    plan = planner.plan_pose((HOME, qd0, Z), pose_matrix([0.6, 0.1, 0.4], [1.0, 0.0, 0.0, 0.0]))
+    q, qd, qdd = plan.trajectory.start_state()
+    assert q == pytest.approx(HOME) and qd == pytest.approx(qd0)          # no jump, no braking first
+    assert [s.method for s in plan.segments] == ['optimal']
+    assert _jerk_ok(arm, plan)
+
+
+def test_table1_cycle_with_optimal_segments_keeps_the_jerk_limits(arm):
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
+                                           limit_jerk=True))
+    settings = PickSettings(approach_method='optimal', transfer_method='optimal').validate(arm)
+    plan = PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)
+    assert {s.method for s in plan.segments} == {'optimal', 'line', 'dwell'}
+    assert _jerk_ok(arm, plan)
+    paper = PickCycle(Planner(arm, PlannerSettings(speed_scale=1.0)), PickSettings().validate(arm)).plan(
+        (HOME, Z, Z), APPLE)
+    assert not _jerk_ok(arm, paper)                        # the paper's LSPB segments do not keep them
+
+
+def test_limit_jerk_refuses_profiles_with_acceleration_steps(arm):
+    with pytest.raises(ValueError, match='unbounded jerk'):
+        PlannerSettings(method='lspb', limit_jerk=True).validate()
+    planner = Planner(arm, PlannerSettings(path_method='quintic_via', limit_jerk=True))
+    with pytest.raises(ValueError, match='unbounded jerk'):
+        planner.joint_move(HOME, HOME + 0.1, 'cubic')
+    # A 0.2 rad quintic in 0.5 s keeps velocity and acceleration but needs 1.6 times the jerk limit.
+    with pytest.raises(Unreachable, match='jerk limit broken'):
+        Planner(arm, PlannerSettings(path_method='quintic_via', limit_jerk=True, duration=0.5)).joint_move(
+            HOME, HOME + 0.2, 'quintic')
