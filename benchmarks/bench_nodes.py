@@ -142,45 +142,90 @@ def meets_row4(f):
 
 def loop_row(figures, label):
     f = figures
-    return [label, f'{f["rate_hz"]:.1f} Hz; period error p50 {f["period_error_p50_us"]:.0f} µs, '
-                   f'p99 {f["period_error_p99_us"]:.0f} µs, max {f["period_error_max_us"]:.0f} µs',
-            f'{f["missed"]:.0f} missed ({f["missed_percent"]:.3f} %); CPU {f["cpu_window_percent"]:.1f} % of a core',
+    return ['4', label, f'p99 {f["period_error_p99_us"]:.0f} µs, {f["missed_percent"]:.3f} % missed, '
+                        f'CPU {f["cpu_window_percent"]:.1f} %',
+            f'{f["rate_hz"]:.1f} Hz; period error p50 {f["period_error_p50_us"]:.0f} µs, max '
+            f'{f["period_error_max_us"]:.0f} µs; {f["missed"]:.0f} of {f["ticks"]:.0f} ticks missed',
             'p99 ≤ 100 µs, < 0.1 % missed, ≤ 30 % CPU', 'met' if meets_row4(f) else 'missed']
 
 
 def arms(rate, max_n, seconds):
-    """The largest N (1..max_n) whose controllers all meet row 4; stops at the first failure."""
+    """N = 1..max_n stacks side by side; the largest N whose controllers all meet row 4.
+
+    Every N is measured (and reported) until the controllers no longer keep even
+    90 % of their rate.
+    """
     best, seen = 0, []
     for n in range(1, max_n + 1):
         figures = run_stacks(n, rate, seconds)
-        worst = max(figures, key=lambda f: (not meets_row4(f), f.get('period_error_p99_us', np.inf)))
-        ok = all(meets_row4(f) for f in figures)
+        worst = max(figures, key=lambda f: f.get('period_error_p99_us', np.inf))
+        ok = len(figures) == n and all(meets_row4(f) for f in figures)
+        slowest = min(f.get('rate_hz', 0.0) for f in figures) if figures else 0.0
         seen.append(f'N={n}: worst p99 {worst.get("period_error_p99_us", np.nan):.0f} µs, '
-                    f'missed {worst.get("missed_percent", np.nan):.2f} %, CPU '
-                    f'{worst.get("cpu_window_percent", np.nan):.0f} %')
+                    f'missed {max(f.get("missed_percent", np.nan) for f in figures):.2f} %, CPU '
+                    f'{max(f.get("cpu_window_percent", np.nan) for f in figures):.0f} %, slowest {slowest:.0f} Hz')
         print(f'    {rate:g} Hz, {seen[-1]}', flush=True)
-        if not ok:
+        if ok and best == n - 1:
+            best = n
+        if slowest < 0.9 * rate:
             break
-        best = n
     return best, seen
 
 
-def run(quick=False):
-    rows = []
-    print('  goal -> JointTrajectory over DDS:', flush=True)
-    lat, lost = goal_latency(40 if quick else 200)
-    rows.append([f'goal → JointTrajectory over DDS ({len(lat)} pose goals)',
-                 f'median {fmt_time(np.median(lat))}, p99 {fmt_time(np.percentile(lat, 99))}',
-                 f'max {fmt_time(lat.max())}; {lost} lost', 'p99 ≤ 10 ms',
-                 'met' if np.percentile(lat, 99) <= 0.010 and lost == 0 else 'missed'])
-    seconds = 10 if quick else 60
-    print(f'  the controller at 1 kHz for {seconds} s with the simulator and planner:', flush=True)
-    (figures,) = run_stacks(1, 1000.0, seconds)
-    rows.append(loop_row(figures, f'controller loop at 1 kHz, {seconds} s (one arm)'))
-    for rate, max_n in ((1000.0, 4), (250.0, 6)):
-        print(f'  arms side by side at {rate:g} Hz:', flush=True)
-        best, seen = arms(rate, max_n if not quick else 2, 8 if quick else 20)
-        rows.append([f'arms side by side at {rate:g} Hz (sim + controller + planner each)',
-                     f'{best} arm(s) meet row 4', '; '.join(seen), '4 arms at 1 kHz',
-                     ('met' if best >= 4 else 'missed') if rate == 1000.0 else '—'])
-    return rows
+BARE_LOOP = """
+import sys, time
+sys.path.insert(0, sys.argv[2])
+from picking_controller.timing import LoopStats
+period, seconds = 1e-3, float(sys.argv[1])
+stats = LoopStats(period)
+next_t = time.monotonic()
+end = next_t + seconds
+while next_t < end:
+    stats.record(time.monotonic())
+    next_t += period
+    delay = next_t - time.monotonic()
+    if delay > 0:
+        time.sleep(delay)
+s = stats.summary()
+print(s['period_error_p50_us'], s['period_error_p99_us'], s['period_error_max_us'], s['missed_percent'])
+"""
+
+
+def bare_loop(seconds):
+    """The machine's floor: a Python loop that only sleeps to 1 ms deadlines (nothing else running)."""
+    import subprocess
+    out = subprocess.run([sys.executable, '-c', BARE_LOOP, str(seconds), str(ROOT / 'src' / 'picking_controller')],
+                         capture_output=True, text=True, timeout=seconds + 30)
+    p50, p99, worst, missed = map(float, out.stdout.split())
+    return p50, p99, worst, missed
+
+
+def run(quick=False, rows=(3, 4, 6)):
+    out = []
+    if 3 in rows:
+        print('row 3: goal -> JointTrajectory over DDS', flush=True)
+        lat, lost = goal_latency(40 if quick else 200)
+        out.append(['3', f'goal → JointTrajectory over DDS ({len(lat)} pose goals, one at a time)',
+                    f'p99 {fmt_time(np.percentile(lat, 99))}',
+                    f'median {fmt_time(np.median(lat))}, max {fmt_time(lat.max())}; {lost} goals lost',
+                    'p99 ≤ 10 ms', 'met' if np.percentile(lat, 99) <= 0.010 and lost == 0 else 'missed'])
+        print('  ' + ' | '.join(out[-1]), flush=True)
+    if 4 in rows:
+        seconds = 10 if quick else 60
+        print(f'row 4: the controller at 1 kHz for {seconds} s with the simulator and the planner', flush=True)
+        p50, p99, worst, missed = bare_loop(10)
+        (figures,) = run_stacks(1, 1000.0, seconds)
+        row = loop_row(figures, f'controller loop at 1 kHz for {seconds} s (simulator and planner running)')
+        row[3] += (f'; floor: a bare Python sleep loop alone on this machine: p50 {p50:.0f} µs, p99 {p99:.0f} µs, '
+                   f'max {worst:.0f} µs, {missed:.2f} % missed')
+        out.append(row)
+        print('  ' + ' | '.join(out[-1]), flush=True)
+    if 6 in rows:
+        for rate, max_n in ((1000.0, 4), (250.0, 6)):
+            print(f'row 6: arms side by side at {rate:g} Hz', flush=True)
+            best, seen = arms(rate, max_n if not quick else 2, 8 if quick else 20)
+            out.append(['6', f'arms side by side at {rate:g} Hz (simulator + controller + planner each)',
+                        f'{best} arm(s) meet row 4', '; '.join(seen), '4 arms at 1 kHz' if rate == 1000.0 else '—',
+                        ('met' if best >= 4 else 'missed') if rate == 1000.0 else '—'])
+            print('  ' + ' | '.join(out[-1]), flush=True)
+    return out

@@ -24,6 +24,16 @@ MIN_LEAD = 0.02
 
 
 @dataclass(frozen=True)
+class Prepared:
+    """A validated trajectory, ready to take over at ``t_splice`` (see :meth:`ControllerCore.prepare`)."""
+
+    traj: PiecewisePolynomial
+    t_splice: float
+    version: int
+    accepted: Event
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """Tracking tolerances (rad, s), one value for every joint or one per joint."""
 
@@ -75,6 +85,8 @@ class ControllerCore:
         self.measured_time = None
         self.feedback_ok = False
         self.max_error = np.zeros(self.n)
+        self.version = 0                 # counts changes of the active trajectory
+        self.next = None                 # a Prepared trajectory waiting for its splice time
 
     # -- feedback -------------------------------------------------------------
     def on_state(self, q, qd, stamp, now):
@@ -130,6 +142,10 @@ class ControllerCore:
     # -- the reference ------------------------------------------------------------
     def reference(self, now):
         """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
+        if self.next is not None and now >= self.next.t_splice:
+            self._set(self.next.traj, self.next.t_splice)
+            self.mode = 'moving'
+            self.max_error[:] = 0.0
         if self.traj is None:
             return None
         # A tick that read the clock just before a new trajectory was loaded gets the
@@ -150,18 +166,60 @@ class ControllerCore:
                                    + ('trajectory aborted, ' if was_moving else '') + 'holding')]
         return []
 
+    def _set(self, traj, t0):
+        """Make ``traj`` (its t = 0 at clock time ``t0``) the active trajectory."""
+        self.traj, self.t0 = traj, t0
+        self.next = None
+        self.version += 1
+
     def _hold_at(self, q, now):
-        self.traj = hold(q, 1.0)
-        self.t0 = now
+        self._set(hold(q, 1.0), now)
 
     def _stop(self, now):
         """Brake the reference to rest, within the acceleration limits, then hold."""
-        self.traj = brake(*self.reference(now), self.max_acceleration)
-        self.t0 = now
+        self._set(brake(*self.reference(now), self.max_acceleration), now)
 
     # -- new trajectories -------------------------------------------------------------
     def load(self, joint_names, times, positions, velocities, accelerations, start, now):
-        """Validate and start a trajectory; returns an Event (accepted or rejected).
+        """Validate and start a trajectory now; returns an Event (accepted or rejected).
+
+        :meth:`prepare` then :meth:`commit` at the same time: what a node does in
+        two steps, so that its control loop never waits for the validation.
+        """
+        try:
+            prepared = self.prepare(joint_names, times, positions, velocities, accelerations, start, now)
+        except ValueError as exc:
+            return self.rejected(exc)
+        return self.commit(prepared, now)
+
+    @staticmethod
+    def rejected(exc):
+        return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference')
+
+    def commit(self, prepared, now):
+        """Schedule a prepared trajectory to take over at its splice time.
+
+        Returns its Event, or None when the active trajectory changed since it was
+        prepared (a fault braked, feedback came) or its splice time has passed:
+        prepare it again.
+        """
+        if prepared.version != self.version or now > prepared.t_splice:
+            return None
+        if now == prepared.t_splice:
+            self._set(prepared.traj, prepared.t_splice)
+            self.mode = 'moving'
+            self.max_error[:] = 0.0
+        else:
+            self.next = prepared
+            self.version += 1
+        return prepared.accepted
+
+    def prepare(self, joint_names, times, positions, velocities, accelerations, start, now, splice_delay=0.0):
+        """Validate a trajectory and splice it onto the reference at ``now + splice_delay``.
+
+        Reads the controller's state but changes nothing, so a node can run it
+        outside the lock its control loop takes; :meth:`commit` then schedules
+        the result. Raises ValueError with the reason for refusing it.
 
         Parameters
         ----------
@@ -172,52 +230,57 @@ class ControllerCore:
         positions, velocities, accelerations : array_like, shape (m, k)
             Empty velocities/accelerations mean "not given".
         start : float
-            Clock time of the trajectory's start (header.stamp; 0 means now).
+            Clock time of the trajectory's start (header.stamp; 0 means the splice time).
         now : float
+        splice_delay : float
+            The new trajectory takes over this long after ``now``, s: time for the
+            caller to finish before the switch (the old one runs until then).
         """
-        try:
-            if self.mode == 'waiting':
-                raise ValueError('no joint_states received yet: the controller does not know where the arm is')
-            if not self.feedback_ok:
-                raise ValueError('feedback lost: no joint_states; refusing to move blind')
-            order = self._order(joint_names)
-            self._held = self.reference(now)[0]
-            times = np.asarray(times, float)
-            m = times.size
-            pos = self._block(positions, m, len(joint_names), order, 'positions')
-            vel = self._block(velocities, m, len(joint_names), order, 'velocities', optional=True)
-            acc = self._block(accelerations, m, len(joint_names), order, 'accelerations', optional=True)
-            offset = (start - now) if start > 0 else 0.0
-            rel = times + offset
-            if m and rel[-1] <= MIN_LEAD:
-                raise ValueError('the trajectory ends in the past (or within 20 ms)')
-            # Points due within MIN_LEAD are dropped and replaced by a lead-in from the
-            # current reference: a lead-in shorter than that would need a violent move.
-            keep = rel > MIN_LEAD
-            keep[-1] = True
-            dropped = m - int(keep.sum())
-            if dropped:
-                # The last dropped point is where the plan expects the arm about now.
-                ref_q = self.reference(now)[0]
-                gap = np.abs(pos[~keep][-1] - ref_q).max()
-                if gap > self.tol.path:
-                    raise ValueError(f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the '
-                                     'current reference; give the first point a later time_from_start to '
-                                     'move there smoothly')
-                rel, pos = rel[keep], pos[keep]
-                vel = None if vel is None else vel[keep]
-                acc = None if acc is None else acc[keep]
-            self._check_limits(pos, vel, acc)
-            ref = self.reference(now)
-            traj = from_points(rel, pos, vel, acc, start=ref)
-            self._check_spline(traj)
-        except ValueError as exc:
-            return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference')
-        self.traj, self.t0 = traj, now
-        self.mode = 'moving'
-        self.max_error[:] = 0.0
-        return Event('OK', 'trajectory accepted', {'points': m, 'duration': float(traj.duration),
-                                                   'starts_in': float(max(offset, 0.0))})
+        version = self.version
+        now = now + splice_delay                 # everything below happens at the splice time
+        if self.mode == 'waiting':
+            raise ValueError('no joint_states received yet: the controller does not know where the arm is')
+        if not self.feedback_ok:
+            raise ValueError('feedback lost: no joint_states; refusing to move blind')
+        order = self._order(joint_names)
+        ref = self._reference_at(now)
+        held = ref[0]
+        times = np.asarray(times, float)
+        m = times.size
+        pos = self._block(positions, m, len(joint_names), order, 'positions', held=held)
+        vel = self._block(velocities, m, len(joint_names), order, 'velocities', optional=True)
+        acc = self._block(accelerations, m, len(joint_names), order, 'accelerations', optional=True)
+        offset = (start - now) if start > 0 else 0.0
+        rel = times + offset
+        if m and rel[-1] <= MIN_LEAD:
+            raise ValueError('the trajectory ends in the past (or within 20 ms)')
+        # Points due within MIN_LEAD are dropped and replaced by a lead-in from the
+        # current reference: a lead-in shorter than that would need a violent move.
+        keep = rel > MIN_LEAD
+        keep[-1] = True
+        dropped = m - int(keep.sum())
+        if dropped:
+            # The last dropped point is where the plan expects the arm about now.
+            gap = np.abs(pos[~keep][-1] - held).max()
+            if gap > self.tol.path:
+                raise ValueError(f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the '
+                                 'current reference; give the first point a later time_from_start to '
+                                 'move there smoothly')
+            rel, pos = rel[keep], pos[keep]
+            vel = None if vel is None else vel[keep]
+            acc = None if acc is None else acc[keep]
+        self._check_limits(pos, vel, acc)
+        traj = from_points(rel, pos, vel, acc, start=ref)
+        self._check_spline(traj)
+        return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
+            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}))
+
+    def _reference_at(self, t):
+        """The reference at clock time ``t`` as things stand (a scheduled trajectory
+        included), without switching to it."""
+        traj, t0 = (self.next.traj, self.next.t_splice) if self.next and t >= self.next.t_splice \
+            else (self.traj, self.t0)
+        return traj.state_at(max(t - t0, traj.start_time))
 
     def _order(self, joint_names):
         names = list(joint_names)
@@ -231,7 +294,7 @@ class ControllerCore:
             raise ValueError(f'missing joints {missing}')
         return [names.index(n) if n in names else -1 for n in self.names]
 
-    def _block(self, values, m, k, order, what, optional=False):
+    def _block(self, values, m, k, order, what, optional=False, held=None):
         rows = [np.asarray(v, float) for v in values]
         if optional and all(r.size == 0 for r in rows):
             return None
@@ -246,7 +309,7 @@ class ControllerCore:
         left_out = np.array(order) < 0
         if left_out.any():
             # Joints the trajectory leaves out hold where their reference is.
-            arr[:, left_out] = self._held[left_out] if what == 'positions' else 0.0
+            arr[:, left_out] = held[left_out] if what == 'positions' else 0.0
         return arr
 
     def _check_limits(self, pos, vel, acc, slack=1e-6):

@@ -64,6 +64,7 @@ class ControllerNode(Node):
         self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
         self.pub_loop = self.create_publisher(DiagnosticStatus, 'controller_loop', RELIABLE)
         self.loop_stats = LoopStats(1.0 / self.rate)
+        self._splice_delay = 0.02       # s ahead that a new trajectory takes over (see _on_trajectory)
         self._commanding = False
         self.create_timer(1.0, self._report_loop)
         self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE)
@@ -106,13 +107,33 @@ class ControllerNode(Node):
         self._report(events)
 
     def _on_trajectory(self, msg):
+        """Validate and splice a new trajectory without stalling the control loop.
+
+        The checks and the spline run outside the loop's lock, for a splice a
+        little ahead (twice the last preparation time); the loop keeps commanding
+        the old trajectory until then. Only if the state changed meanwhile (or
+        preparing took too long) twice in a row is the work done under the lock.
+        """
         pts = msg.points
-        with self.lock:
-            event = self.core.load(
-                msg.joint_names,
-                [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
+        args = (msg.joint_names, [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
                 [p.positions for p in pts], [p.velocities for p in pts], [p.accelerations for p in pts],
-                _seconds(msg.header.stamp), self.now())
+                _seconds(msg.header.stamp))
+        event = None
+        for _ in range(2):
+            started = time.perf_counter()
+            try:
+                prepared = self.core.prepare(*args, self.now(), splice_delay=self._splice_delay)
+            except ValueError as exc:
+                event = self.core.rejected(exc)
+                break
+            self._splice_delay = min(max(0.005, 2.0 * (time.perf_counter() - started)), 0.05)
+            with self.lock:
+                event = self.core.commit(prepared, self.now())
+            if event is not None:
+                break
+        if event is None:
+            with self.lock:
+                event = self.core.load(*args, self.now())
         self._report([event])
 
     def _loop(self):

@@ -50,6 +50,35 @@ def test_new_trajectory_splices_on_without_a_velocity_jump():
     assert np.abs(np.diff(v, axis=0)).max() < 0.05
 
 
+def test_a_prepared_trajectory_takes_over_at_its_splice_time_without_a_jump():
+    c = core()
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    prepared = c.prepare(['a', 'b'], [0.5, 1.5], [[0.8, 0.0], [0.2, 0.3]], [], [], 0.0, now=1.0,
+                         splice_delay=0.02)
+    old = c.reference(1.01)                               # the old trajectory runs until the splice
+    assert c.commit(prepared, now=1.01).level == 'OK'
+    assert c.reference(1.015)[0] == pytest.approx(c._reference_at(1.015)[0])
+    t = 1.01 + np.linspace(0.0, 0.05, 501)
+    q = np.array([c.reference(x)[0] for x in t])
+    v = np.array([c.reference(x)[1] for x in t])
+    assert q[0] == pytest.approx(old[0])
+    assert np.abs(np.diff(v, axis=0)).max() < 0.01          # no velocity step at 1.02 s
+    assert c.traj is prepared.traj and c.t0 == pytest.approx(1.02)
+
+
+def test_a_prepared_trajectory_is_refused_when_the_state_changed_or_it_came_too_late():
+    c = core(path=0.05)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
+    prepared = c.prepare(['a', 'b'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5, splice_delay=0.02)
+    assert c.commit(prepared, now=0.6) is None                # too late: prepare again
+    prepared = c.prepare(['a', 'b'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5, splice_delay=0.02)
+    c.on_state([0.3, 0.0, 0.05], None, 0.5, now=0.5)          # a fault brakes meanwhile
+    assert c.mode == 'fault'
+    assert c.commit(prepared, now=0.51) is None
+    with pytest.raises(ValueError, match='unknown joints'):
+        c.prepare(['a', 'x'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5)
+
+
 def test_path_tolerance_violation_brakes_and_holds():
     c = core(path=0.05)
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)

@@ -60,7 +60,7 @@ class PlannerNode(Node):
         defaults = PlannerSettings()
         self.declare_parameter('urdf_path', '')
         self.declare_parameter('reference_timeout', 0.1)
-        self.declare_parameter('start_delay', 0.05)
+        self.declare_parameter('start_delay', 0.1)
         for name in SETTINGS:
             self.declare_parameter(name, getattr(defaults, name))
         pick = PickSettings()
