@@ -264,12 +264,12 @@ class ControllerCore:
             gap = np.abs(pos[~keep][-1] - held).max()
             if gap > self.tol.path:
                 raise ValueError(f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the '
-                                 'current reference; give the first point a later time_from_start to '
-                                 'move there smoothly')
+                                 f'current reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); '
+                                 'give the first point a later time_from_start to move there smoothly')
             rel, pos = rel[keep], pos[keep]
             vel = None if vel is None else vel[keep]
             acc = None if acc is None else acc[keep]
-        self._check_limits(pos, vel, acc)
+        self._check_limits(pos, vel, acc, times=rel)
         traj = from_points(rel, pos, vel, acc, start=ref)
         self._check_spline(traj)
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
@@ -312,7 +312,7 @@ class ControllerCore:
             arr[:, left_out] = held[left_out] if what == 'positions' else 0.0
         return arr
 
-    def _check_limits(self, pos, vel, acc, slack=1e-6):
+    def _check_limits(self, pos, vel, acc, slack=1e-6, times=None):
         for what, arr, lo, hi in (('position', pos, self.lower, self.upper),
                                   ('velocity', vel, -self.max_velocity, self.max_velocity),
                                   ('acceleration', acc, -self.max_acceleration, self.max_acceleration)):
@@ -322,7 +322,7 @@ class ControllerCore:
             if bad.any():
                 i, j = np.argwhere(bad)[0]
                 raise ValueError(f'point {i}: {self.names[j]} {what} {arr[i, j]:.4g} is beyond its limit '
-                                 f'[{lo[j]:.4g}, {hi[j]:.4g}]')
+                                 f'[{lo[j]:.4g}, {hi[j]:.4g}]' + (f' at {times[i]:+.3f} s from now' if times is not None else ''))
 
     def _check_spline(self, traj):
         """The spline between the points must respect the limits too."""

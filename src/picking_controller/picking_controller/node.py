@@ -33,6 +33,7 @@ from .timing import LoopStats
 
 LEVELS = {'OK': OK, 'WARN': WARN, 'ERROR': ERROR}
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+MIN_SLEEP = 5e-5     # s the loop sleeps at least per tick, even when late
 
 
 def _seconds(stamp):
@@ -47,7 +48,7 @@ class ControllerNode(Node):
         get = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
         urdf = get('urdf_path', '')
         self.rate = float(get('update_rate', 1000.0))
-        self.thread_priority = int(get('thread_priority', 0))
+        self.thread_priority = int(get('thread_priority', 50))
         if not 0 <= self.thread_priority <= 99:
             raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         if not self.rate > 0:
@@ -167,10 +168,10 @@ class ControllerNode(Node):
                 cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
                 self.pub_cmd.publish(cmd)
             delay = next_t - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            elif delay < -period:
+            if delay < -period:
                 next_t = time.monotonic()        # too far behind: resynchronise, do not burst
+            # Always sleep a little: a real-time thread that never sleeps starves the rest.
+            time.sleep(max(delay, MIN_SLEEP))
 
     def _report_loop(self):
         if self._commanding:

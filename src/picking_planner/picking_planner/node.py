@@ -35,6 +35,9 @@ from .resources import default_urdf
 from .ros_common import ERROR, OK, LatestMessage, reorder, run_node, status
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: s a plan must leave between the end of planning and its start: sending it, and the
+#: controller's checks (a few ms per hundred points).
+DELIVERY = 0.05
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
@@ -74,6 +77,7 @@ class PlannerNode(Node):
 
         self.lock = threading.Lock()
         self.pending = []             # goals that came before the first joint_states
+        self._planning_time = {}      # kind of goal -> s its last planning took
         self.create_timer(0.1, self._serve_pending)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
@@ -159,7 +163,7 @@ class PlannerNode(Node):
         """Where the plan starts: ``(q, qd, qdd), source, start time``.
 
         The plan starts ``delay`` s from now and the trajectory is stamped to
-        start then, so planning and transport time never make the arm jump and
+        start then, so planning and delivery time never make the arm jump and
         the plan's clock is the controller's. While the controller publishes a
         fresh reference, the start state is that reference extrapolated from
         its stamp to the start time; otherwise the measured state, at rest.
@@ -227,19 +231,23 @@ class PlannerNode(Node):
         try:
             with self.lock:
                 self._check_frame(header)
-                delay = self.get_parameter('start_delay').value
+                # The plan starts start_delay after planning is expected to end (this kind of
+                # goal took that long last time), stamped so; it must be planned with at least
+                # DELIVERY s to spare for sending and for the controller, else planned again
+                # further ahead.
+                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, 0.0)
                 ref = self._reference()
                 for _ in range(4):
                     start, source, t_start = self.start_state(delay, ref, measured)
                     plan = plan_fn(start, measured[1])
-                    # Planning must finish before the plan's start; else plan again, further ahead.
-                    if self.get_clock().now().nanoseconds * 1e-9 < t_start - 0.01:
+                    if self.get_clock().now().nanoseconds * 1e-9 < t_start - DELIVERY:
                         break
                     delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
             self._refuse(kind, key, str(exc))
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
+        self._planning_time[kind] = planning_ms * 1e-3
         if not self._controller_listens():
             self._refuse(kind, key, f'no controller subscribes to {self.pub_traj.topic_name}: '
                                     'the plan was not sent')

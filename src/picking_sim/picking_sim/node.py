@@ -80,7 +80,7 @@ class SimNode(Node):
             'noise_std': 0.0, 'command_timeout': 0.05,
             'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
             'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
-            'servo.velocity_margin': 1.2, 'thread_priority': 0,
+            'servo.velocity_margin': 1.2, 'thread_priority': 49,
         }
         out = {}
         for name, value in defaults.items():
@@ -129,9 +129,8 @@ class SimNode(Node):
                         if done % self.publish_every == 0:
                             self._publish(t0 + done * dt)
             next_deadline = start + (done + 1) * dt
-            delay = next_deadline - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+            # Always sleep a little: a real-time thread that never sleeps starves the rest.
+            time.sleep(max(next_deadline - time.monotonic(), 5e-5))
 
     def _publish(self, t_state):
         q = self.servo.q

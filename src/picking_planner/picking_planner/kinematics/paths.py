@@ -99,22 +99,9 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     poses = path.poses(t)
     if path.orientations(t[:1]) is None:
         poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
-    q = np.empty((n, arm.dof))
-    prev = arm.check_joints(seed, 'seed')
-    for i in range(n):
-        try:
-            sol = arm.ik(poses[i], prev)
-        except Unreachable as exc:
-            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at '
-                              f'{np.round(poses[i, :3, 3], 4).tolist()} m): {exc}') from None
-        step = np.abs(sol - prev)
-        if i > 0 and step.max() > max_joint_step:
-            j = int(step.argmax())
-            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at {np.round(poses[i, :3, 3], 4).tolist()} m): '
-                              f'joint {arm.joint_names[j]} would jump {step[j]:.3f} rad in one sample '
-                              f'(threshold {max_joint_step} rad); the path passes near a singularity or '
-                              'changes IK branch')
-        q[i] = prev = sol
+    q = _batched(arm, poses, arm.check_joints(seed, 'seed'), max_joint_step)
+    if q is None:
+        q = _sequential(arm, poses, t, arm.check_joints(seed, 'seed'), max_joint_step)
     sigma = arm.min_singular_values(q)
     worst = int(np.argmin(sigma))
     if sigma[worst] < singular_threshold:
@@ -131,6 +118,38 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     if check_limits:
         check_joint_limits(arm, t_mid, q_mid, qd, qdd)
     return JointPath(t, q, traj, deviation, peak_v, peak_a, float(sigma[worst]))
+
+
+def _batched(arm, poses, seed, max_joint_step):
+    """Every sample's IK at once, each nearest the seed: the result if it is continuous, else None."""
+    q, ok, _ = arm.ik_batch(poses, seed)
+    if not ok.all():
+        return None
+    steps = np.abs(np.diff(np.vstack([seed, q]), axis=0))
+    steps[0] = 0.0                                  # the first sample may lie anywhere near the seed
+    return q if steps.max() <= max_joint_step else None
+
+
+def _sequential(arm, poses, t, seed, max_joint_step):
+    """Sample by sample, each seeded by the one before; raises Unreachable with where and why."""
+    n = len(poses)
+    q = np.empty((n, arm.dof))
+    prev = seed
+    for i in range(n):
+        try:
+            sol = arm.ik(poses[i], prev)
+        except Unreachable as exc:
+            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at '
+                              f'{np.round(poses[i, :3, 3], 4).tolist()} m): {exc}') from None
+        step = np.abs(sol - prev)
+        if i > 0 and step.max() > max_joint_step:
+            j = int(step.argmax())
+            raise Unreachable(f'path fails at t = {t[i]:.3f} s (tool at {np.round(poses[i, :3, 3], 4).tolist()} m): '
+                              f'joint {arm.joint_names[j]} would jump {step[j]:.3f} rad in one sample '
+                              f'(threshold {max_joint_step} rad); the path passes near a singularity or '
+                              'changes IK branch')
+        q[i] = prev = sol
+    return q
 
 
 def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6):

@@ -30,6 +30,10 @@ _N_COEFFS = MAX_DEGREE + 1
 # second derivative: d/dtau sum c_i tau^i = sum i c_i tau^(i-1).
 _D1 = np.arange(1, _N_COEFFS, dtype=float)
 _D2 = _D1[1:] * np.arange(1, _N_COEFFS - 1, dtype=float)
+# Above this many segments, sample() gathers each sample's coefficients instead of looping
+# (up to this many samples at once: the gathered copy grows with both).
+_GATHER_SEGMENTS = 8
+_GATHER_SAMPLES = 20_000
 
 
 class PiecewisePolynomial:
@@ -141,6 +145,16 @@ class PiecewisePolynomial:
         m = len(breaks) - 1
         if m == 1:
             _eval_block(tc - breaks[0], self._stacked[0], rows)
+        elif m > _GATHER_SEGMENTS and tc.size <= _GATHER_SAMPLES:
+            # Many short segments (a spline through 10 ms samples): one gather and one
+            # batched product instead of a Python loop over the segments.
+            k = np.clip(np.searchsorted(breaks, tc, side='left') - 1, 0, m - 1)
+            tau = tc - breaks[k]
+            powers = np.empty((tc.size, _N_COEFFS))
+            powers[:, 0] = 1.0
+            for i in range(1, _N_COEFFS):
+                np.multiply(powers[:, i - 1], tau, out=powers[:, i])
+            rows = np.matmul(powers[:, None, :], self._stacked[k])[:, 0, :].T
         else:
             order = None
             if tc.size > 1 and np.any(tc[1:] < tc[:-1]):
