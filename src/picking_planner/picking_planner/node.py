@@ -13,11 +13,11 @@ goal. Every parameter is validated when it is set.
 
 from __future__ import annotations
 
+import array
 import threading
 import time
 
 import numpy as np
-from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
@@ -277,14 +277,18 @@ class PlannerNode(Node):
         msg.joint_names = list(plan.joint_names or self.names)
         msg.header.stamp.sec = int(t_start)
         msg.header.stamp.nanosec = int((t_start - int(t_start)) * 1e9)
+        # Typed arrays and in-place durations: several times faster to build and to
+        # serialise than lists and new Duration objects (hundreds of points per plan).
+        ns = np.round(t * 1e9).astype(np.int64)
+        secs, nanos = (ns // 1_000_000_000).tolist(), (ns % 1_000_000_000).tolist()
+        q, qd, qdd = (np.ascontiguousarray(x) for x in (q, qd, qdd))
         points = []
         for i in range(len(t)):
             p = JointTrajectoryPoint()
-            p.positions = q[i].tolist()
-            p.velocities = qd[i].tolist()
-            p.accelerations = qdd[i].tolist()
-            sec = int(t[i])
-            p.time_from_start = Duration(sec=sec, nanosec=int(round((t[i] - sec) * 1e9)) % 1_000_000_000)
+            p.positions = array.array('d', q[i].tobytes())
+            p.velocities = array.array('d', qd[i].tobytes())
+            p.accelerations = array.array('d', qdd[i].tobytes())
+            p.time_from_start.sec, p.time_from_start.nanosec = secs[i], nanos[i]
             points.append(p)
         msg.points = points
         self.pub_traj.publish(msg)

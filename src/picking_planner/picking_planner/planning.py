@@ -284,8 +284,14 @@ class Planner:
             return self._join(parts, 'line', cart)
         q_goal = self.arm.check_reachable(T_goal, seed=q)
         if method in ('cubic', 'quintic', 'optimal'):
-            traj = self.joint_move(q, q_goal, method, v0=qd, a0=qdd if method != 'cubic' else None)
-            return self._join([('move', method, traj)], method)
+            try:
+                traj = self.joint_move(q, q_goal, method, v0=qd, a0=qdd if method != 'cubic' else None)
+                return self._join([('move', method, traj)], method)
+            except Unreachable:
+                if self._from_rest(start)[0] is None:
+                    raise
+                # Carried on from this motion the move would cross a limit (an overshoot near a
+                # joint limit, or a start already near the speed limit): brake first, then move.
         stop, q_rest = self._from_rest(start)
         parts = ([('brake', 'quintic', stop)] if stop is not None else [])
         parts.append(('move', method, self.joint_move(q_rest, q_goal, method)))

@@ -67,6 +67,15 @@ def test_plan_from_a_moving_state_starts_with_that_velocity(arm, planner):
         assert q[0] == pytest.approx(HOME) and qd[0] == pytest.approx(qd0), method
 
 
+def test_a_move_that_would_overshoot_a_limit_from_the_motion_brakes_first(arm, planner):
+    # The wrist turns at 99 % of its speed limit: carried on, a quintic would exceed it.
+    qd0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 2.97])
+    plan = planner.plan_pose((HOME, qd0, Z), pose_matrix([0.6, 0.1, 0.4], DOWN), 'quintic')
+    assert [s.label for s in plan.segments] == ['brake', 'move']
+    assert plan.trajectory.sample(0.0)[1][0] == pytest.approx(qd0)
+    _within_limits(arm, plan)
+
+
 @pytest.mark.parametrize('method', PATH_METHODS)
 def test_path_goal_ends_at_the_last_pose(arm, planner, method):
     poses = [pose_matrix([0.55, -0.1, 0.5], DOWN), pose_matrix([0.5, 0.05, 0.45], DOWN)]
