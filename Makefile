@@ -1,6 +1,7 @@
 # make demo   the main job: the pick-and-place demo (creates .venv on first use)
 # make test   colcon build + colcon test of the packages, then the system tests in test/
 # make bench  the speed benchmarks (installs the optional peers to compare against)
+# make fuzz   the long run of the arbitrary-input tests (10 000 examples per function)
 SHELL := /bin/bash
 .SHELLFLAGS := -eo pipefail -c
 PYTHON ?= python3
@@ -18,7 +19,7 @@ export MPLBACKEND := Agg
 
 COLCON_PATHS := --base-paths src --build-base build --install-base install
 
-.PHONY: demo test unit system bench clean
+.PHONY: demo test unit system fuzz bench clean
 
 $(STAMP): requirements.txt $(PACKAGE_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -46,6 +47,12 @@ unit: $(STAMP)
 # The system tests: several processes talking over ROS (pytest exits 5 when it finds none).
 system: $(STAMP)
 	$(BIN)/python -m pytest test -q
+
+# The long run of the arbitrary-input (hypothesis) tests: 10 000 examples per function.
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q -m fuzz --hypothesis-profile=long --import-mode=importlib src/picking_planner/test \
+		src/picking_controller/test \
+		src/picking_sim/test
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -r benchmarks/requirements.txt

@@ -45,6 +45,7 @@ class Watcher:
         self.client = Client(ns)
         self.arrivals = []
         self.loop = None
+        self.loop_time = 0.0
         # Raw: the arrival time, without this client's own (slow, Python) deserialisation in it.
         self.client.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE,
                                         raw=True)
@@ -57,6 +58,7 @@ class Watcher:
 
     def _on_loop(self, msg):
         self.loop = {kv.key: float(kv.value) for kv in msg.values}
+        self.loop_time = time.monotonic()
 
     def close(self):
         self.client.close()
@@ -126,7 +128,11 @@ def run_stacks(n, rate, seconds, goal_every=2.0):
                 time.sleep(goal_every)
             wall = time.monotonic() - t0
             cpu = [100.0 * (cpu_seconds(s.controller.pid) - c) / wall for s, c in zip(stacks, cpu0)]
-            time.sleep(1.2)                           # one more loop report after the window
+            # One more loop report after the window from every controller.
+            end = time.monotonic()
+            deadline = end + 10.0
+            while time.monotonic() < deadline and any(w.loop_time < end for w in watchers):
+                time.sleep(0.1)
             out = []
             for w, c in zip(watchers, cpu):
                 figures = dict(w.loop or {})

@@ -20,6 +20,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
@@ -84,6 +86,12 @@ class Stack:
         home = '[' + ','.join(str(v) for v in HOME + [0.09]) + ']'
         self.sim = Process('picking-sim', ['--ros-args', '-r', f'__ns:={self.ns}', '-p',
                                            f'initial_positions:={home}', *sim_args], self.log_dir)
+
+    def restart_controller(self):
+        self.controller = Process('picking-controller', ['--ros-args', '-r', f'__ns:={self.ns}'], self.log_dir)
+
+    def restart_planner(self):
+        self.planner = Process('picking-planner', ['--ros-args', '-r', f'__ns:={self.ns}'], self.log_dir)
 
     def stop(self):
         return {p.name: p.stop() for p in (self.planner, self.controller, self.sim)}
@@ -177,6 +185,14 @@ class Client(Node):
         msg.pose = make_pose(xyz, quat)
         self.pub_pose.publish(msg)
         return msg
+
+    def set_planner_parameter(self, name, value, timeout=10.0):
+        """Set one of the planner's parameters through its parameter service (as picking-goal does)."""
+        client = AsyncParameterClient(self, 'picking_planner')
+        assert client.wait_for_services(timeout_sec=timeout), 'the planner offers no parameter service'
+        future = client.set_parameters([Parameter(name, value=value)])
+        self.wait_for(future.done, timeout, f'the planner to set {name}')
+        assert future.result().results[0].successful, future.result().results[0].reason
 
     def close(self):
         self._exec.shutdown()

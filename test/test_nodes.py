@@ -1,5 +1,6 @@
 """System tests: simulator, controller and planner as separate processes, driven over ROS."""
 
+import re
 import subprocess
 import time
 
@@ -8,10 +9,12 @@ import pytest
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
+from picking_planner.ros_common import status_values
 from rosstack import ARM_JOINTS, BIN, HOME, Client, Stack, ensure_rclpy, make_pose
 
 ARM = ArmModel.from_urdf(default_urdf())
@@ -100,6 +103,52 @@ def test_goal_in_another_frame_is_refused(arm1):
     client.pub_pose.publish(goal)
     answer = client.planner_answer(mark)
     assert answer.level == DiagnosticStatus.ERROR and 'base frame' in answer.message
+
+
+NAN = float('nan')
+
+
+def _pose_goal(xyz, quat):
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = make_pose(xyz, quat)
+    return msg
+
+
+def _path_goal(points):
+    msg = PoseArray()
+    msg.header.frame_id = 'base_link'
+    msg.poses = [make_pose(p) for p in points]
+    return msg
+
+
+@pytest.mark.parametrize('topic, goal, reason', [
+    ('pose', _pose_goal([NAN, 0.0, 0.4], [1.0, 0.0, 0.0, 0.0]), 'finite'),
+    ('pose', _pose_goal([0.6, 0.0, float('inf')], [1.0, 0.0, 0.0, 0.0]), 'finite'),
+    ('pose', _pose_goal([0.6, 0.0, 0.4], [0.0, 0.0, 0.0, 0.0]), 'quaternion is zero'),
+    ('pose', _pose_goal([0.6, 0.0, 0.4], [NAN, 0.0, 0.0, 1.0]), 'finite'),
+    ('pick', _pose_goal([0.6, NAN, 0.4], [1.0, 0.0, 0.0, 0.0]), 'finite'),
+    ('path', _path_goal([]), 'no poses'),
+    ('path', _path_goal([[0.5, 0.0, 0.4], [NAN, 0.1, 0.4]]), 'finite'),
+    ('arc', _path_goal([[0.5, 0.0, 0.4], [0.5, 0.0, 0.4]]), 'collinear|coincide|distinct'),
+])
+def test_malformed_goal_is_refused_with_the_reason_and_the_arm_stays(arm1, topic, goal, reason):
+    _, client = arm1
+    before = client.last_positions()
+    mark = client.mark()
+    if topic == 'arc':
+        client.set_planner_parameter('path_method', 'arc')
+    try:
+        {'pose': client.pub_pose, 'pick': client.pub_pick, 'path': client.pub_path,
+         'arc': client.pub_path}[topic].publish(goal)
+        answer = client.planner_answer(mark)
+    finally:
+        if topic == 'arc':
+            client.set_planner_parameter('path_method', 'via_lspb')
+    assert answer.level == DiagnosticStatus.ERROR
+    assert re.search(reason, answer.message), answer.message
+    time.sleep(0.3)
+    assert np.abs(client.last_positions() - before).max() < 1e-4
 
 
 def _trajectory(names, points):
@@ -200,6 +249,80 @@ def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path
         codes = stack.stop()
         client.close()
     assert set(codes.values()) == {0}
+
+
+def _rss_mb(pid):
+    for line in open(f'/proc/{pid}/status'):
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
+    stack, client = arm1
+    answers = {}
+    sub = client.create_subscription(DiagnosticStatus, 'planner_status',
+                                     lambda m: answers.setdefault(status_values(m).get('goal'), m),
+                                     QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE))
+    client.wait_for(lambda: sub.get_publisher_count() > 0, 10.0, 'the planner')
+    memory = {p.name: _rss_mb(p.pid) for p in (stack.planner, stack.controller)}
+    keys = []
+    start = time.monotonic()
+    while time.monotonic() - start < 10.0:                          # 1000 goals a second for 10 s
+        goal = client.send_pose([0.55, 0.05, 0.45] if len(keys) % 2 else [0.6, -0.05, 0.4])
+        keys.append(f'{goal.header.stamp.sec}.{goal.header.stamp.nanosec:09d}')
+        time.sleep(max(0.0, start + len(keys) / 1000.0 - time.monotonic()))
+    mark = client.mark()
+    last = client.send_pose([0.58, 0.0, 0.42])
+    last_key = f'{last.header.stamp.sec}.{last.header.stamp.nanosec:09d}'
+    client.wait_for(lambda: last_key in answers, 60.0, 'the last goal\'s answer')
+    assert answers[last_key].level == DiagnosticStatus.OK, answers[last_key].message
+    client.controller_event(mark, 'goal reached', 40.0)
+    assert np.linalg.norm(tool_position(client) - [0.58, 0.0, 0.42]) < 1e-3       # the last goal won
+    missing = [k for k in keys if k not in answers]
+    assert len(keys) > 5000 and not missing, f'{len(missing)} of {len(keys)} goals got no status'
+    for p in (stack.planner, stack.controller, stack.sim):
+        assert p.proc.poll() is None, f'{p.name} died'
+    for p in (stack.planner, stack.controller):
+        assert _rss_mb(p.pid) - memory[p.name] < 100, f'{p.name} memory grew'
+    client.destroy_subscription(sub)
+
+
+def _largest_step(client, since):
+    """Largest change of any arm joint between consecutive joint_states since ``since``."""
+    with client.lock:
+        msgs = [m for _, m in client.states[since['states']:]]
+    q = np.array([[m.position[list(m.name).index(n)] for n in ARM_JOINTS] for m in msgs])
+    return np.abs(np.diff(q, axis=0)).max() if len(q) > 1 else 0.0
+
+
+def test_controller_and_planner_restarts_hold_the_arm_and_it_carries_on(tmp_path):
+    ensure_rclpy()
+    stack = Stack('/sys5', tmp_path)
+    client = Client('/sys5')
+    try:
+        client.wait_ready()
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
+        at_rest = client.mark()
+        before = client.last_positions()
+        # The controller dies: the simulator holds where it was told last (and says so).
+        assert stack.controller.stop() == 0
+        time.sleep(1.0)
+        stack.restart_controller()
+        client.controller_event(at_rest, 'feedback received', 30.0)    # the new one holds the measured position
+        time.sleep(1.0)
+        # The planner dies and comes back: goals work again.
+        assert stack.planner.stop() == 0
+        stack.restart_planner()
+        client.wait_ready()
+        assert _largest_step(client, at_rest) < 1e-4                      # no jump at either restart
+        assert np.abs(client.last_positions() - before).max() < 1e-3
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+    finally:
+        codes = stack.stop()
+        client.close()
+    assert set(codes.values()) == {0}
+    assert 'holding' in (tmp_path / 'sys5' / 'picking-sim.log').read_text()
 
 
 def test_nodes_exit_cleanly_on_sigterm(tmp_path):

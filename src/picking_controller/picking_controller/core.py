@@ -87,6 +87,9 @@ class ControllerCore:
         self.max_error = np.zeros(self.n)
         self.version = 0                 # counts changes of the active trajectory
         self.next = None                 # a Prepared trajectory waiting for its splice time
+        self._last_command = None        # (q, time) of the last command sent
+        self.limited = 0                 # ticks whose command had to be limited
+        self._limited_version = -1
 
     # -- feedback -------------------------------------------------------------
     def on_state(self, q, qd, stamp, now):
@@ -151,6 +154,40 @@ class ControllerCore:
         # A tick that read the clock just before a new trajectory was loaded gets the
         # trajectory's start state (with its velocity), not the "before the start" hold.
         return self.traj.state_at(max(now - self.t0, self.traj.start_time))
+
+    def command(self, now):
+        """What to send at ``now``: the reference held to the joint limits, and events.
+
+        Positions stay within [lower, upper], velocities and accelerations within
+        their limits, and the position within ``max_velocity`` times the time since
+        the last command of that command (no step). The reference is built to keep
+        them; should it not (a bug, a limit changed), the command is limited and
+        reported once per trajectory. Returns ``(q, qd, qdd), events`` or ``None, []``
+        while waiting for feedback.
+        """
+        ref = self.reference(now)
+        if ref is None:
+            return None, []
+        q, qd, qdd = ref
+        out_q = np.clip(q, self.lower, self.upper)
+        last = self._last_command
+        if last is not None and now > last[1]:
+            reach = self.max_velocity * (now - last[1]) * 1.01 + 1e-9
+            np.clip(out_q, last[0] - reach, last[0] + reach, out=out_q)
+        out_qd = np.clip(qd, -self.max_velocity, self.max_velocity)
+        out_qdd = np.clip(qdd, -self.max_acceleration, self.max_acceleration)
+        self._last_command = (out_q, now)
+        events = []
+        if not (np.array_equal(out_q, q) and np.array_equal(out_qd, qd) and np.array_equal(out_qdd, qdd)):
+            self.limited += 1
+            if self._limited_version != self.version:
+                self._limited_version = self.version
+                j = int(np.argmax(np.abs(out_q - q) + np.abs(out_qd - qd) + np.abs(out_qdd - qdd)))
+                events.append(Event('WARN', f'command limited: the reference of {self.names[j]} (position '
+                                            f'{q[j]:.4g}, velocity {qd[j]:.4g}, acceleration {qdd[j]:.4g}) '
+                                            'breaks a joint limit or jumps; sent within the limits',
+                                    {'joint': self.names[j], 'limited_ticks': self.limited}))
+        return (out_q, out_qd, out_qdd), events
 
     def tick(self, now):
         """The watchdog; returns events (feedback lost)."""

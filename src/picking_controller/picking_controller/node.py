@@ -28,7 +28,7 @@ from picking_planner.resources import default_urdf
 from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, make_realtime, reorder,
                                         run_node, status)
 
-from .core import ControllerCore, Tolerances
+from .core import ControllerCore, Event, Tolerances
 from .timing import LoopStats
 
 LEVELS = {'OK': OK, 'WARN': WARN, 'ERROR': ERROR}
@@ -68,7 +68,8 @@ class ControllerNode(Node):
         self._splice_delay = 0.02       # s ahead that a new trajectory takes over (see _on_trajectory)
         self._commanding = False
         self.create_timer(1.0, self._report_loop)
-        self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE)
+        self.sub_trajectory = self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory,
+                                                       RELIABLE)
         # The control thread takes the newest joint_states itself at each tick: no
         # executor callbacks (and no GIL held by another thread) at the state's rate.
         self.states = LatestMessage(self, JointState, 'joint_states')
@@ -115,6 +116,12 @@ class ControllerNode(Node):
         the old trajectory until then. Only if the state changed meanwhile (or
         preparing took too long) twice in a row is the work done under the lock.
         """
+        while True:                  # only the newest waiting trajectory counts: a burst never queues up
+            got = self.sub_trajectory.handle.take_message(JointTrajectory, False)
+            if got is None:
+                break
+            self._report([Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')])
+            msg = got[0]
         pts = msg.points
         args = (msg.joint_names, [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
                 [p.positions for p in pts], [p.velocities for p in pts], [p.accelerations for p in pts],
@@ -156,7 +163,8 @@ class ControllerNode(Node):
             now = ns * 1e-9
             with self.lock:
                 events = self.core.tick(now)
-                ref = self.core.reference(now)
+                ref, limited = self.core.command(now)
+                events += limited
             if events:
                 self._report(events)
             if ref is not None:

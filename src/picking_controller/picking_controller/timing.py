@@ -44,6 +44,8 @@ class LoopStats:
 
     def record(self, t):
         """One tick that started at monotonic time ``t``, s."""
+        if not math.isfinite(t):
+            raise ValueError(f'tick time must be finite, got {t}')
         last = self.last
         self.last = t
         if last is None:
@@ -51,7 +53,10 @@ class LoopStats:
             return
         dt = t - last
         err = abs(dt - self.period)
-        self.counts[min(int(err / BIN), BINS - 1)] += 1
+        if not err < BIN * BINS:                 # 100 ms and more (or a clock gone wrong)
+            self.counts[BINS - 1] += 1
+        else:
+            self.counts[int(err / BIN)] += 1
         self.ticks += 1
         if err > self.worst:
             self.worst = err
@@ -72,7 +77,7 @@ class LoopStats:
         wall = time.monotonic() - self.wall_start
         return {
             'ticks': self.ticks,
-            'rate_hz': self.ticks / span if self.ticks else math.nan,
+            'rate_hz': self.ticks / span if self.ticks and span > 0 else math.nan,
             'period_error_p50_us': self.percentile(50) * 1e6,
             'period_error_p99_us': self.percentile(99) * 1e6,
             'period_error_max_us': self.worst * 1e6,

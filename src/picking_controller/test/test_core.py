@@ -128,3 +128,23 @@ def test_bad_trajectories_are_refused_and_the_reference_stays(names, times, pos,
     assert ev.level == 'ERROR' and reason in ev.message, ev.message
     assert c.reference(0.0)[0] == pytest.approx(before[0])
     assert c.mode == 'holding'
+
+
+def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
+    from picking_planner.trajectory import hold
+    c = core()
+    (q, qd, qdd), events = c.command(0.0)
+    assert q == pytest.approx([0.0, 0.0, 0.05]) and not events
+    # A reference beyond a position limit and far away (as a bug would make): limited and reported once.
+    c._set(hold(np.array([5.0, -1.0, 0.05]), 1.0), 0.0)
+    sent, reports = [], []
+    for k in range(1, 2001):
+        (q, qd, qdd), events = c.command(k * 1e-3)
+        sent.append(q)
+        reports += events
+    sent = np.array(sent)
+    assert np.all(sent[:, 0] <= 3.0) and sent[-1] == pytest.approx([3.0, -1.0, 0.05])
+    steps = np.abs(np.diff(np.vstack([[0.0, 0.0, 0.05], sent]), axis=0))
+    assert np.all(steps <= np.array([2, 2, 0.3]) * 1e-3 * 1.02)             # never faster than the limit
+    assert len(reports) == 1 and reports[0].level == 'WARN' and 'command limited' in reports[0].message
+    assert c.limited > 0

@@ -32,12 +32,17 @@ from .kinematics import ArmModel, Unreachable, pose_matrix
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
-from .ros_common import ERROR, OK, LatestMessage, reorder, run_node, status
+from .ros_common import ERROR, OK, WARN, LatestMessage, reorder, run_node, status
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
+#: coalesced: only the newest waiting goal is planned, the others answered as superseded).
+BURST = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: s a plan must leave between the end of planning and its start: sending it, and the
 #: controller's checks (a few ms per hundred points).
 DELIVERY = 0.05
+#: rad: the controller's reference is following our last plan when within this of it.
+FOLLOWING = 1e-3
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
@@ -78,13 +83,16 @@ class PlannerNode(Node):
         self.lock = threading.Lock()
         self.pending = []             # goals that came before the first joint_states
         self._planning_time = {}      # kind of goal -> s its last planning took
+        self._sent = None             # (trajectory, its start time) of the last plan sent
         self.create_timer(0.1, self._serve_pending)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
-        self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', RELIABLE)
-        self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, RELIABLE)
-        self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, RELIABLE)
-        self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, RELIABLE)
+        self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', BURST)
+        self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
+        self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
+        self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
+        self._superseded = 0          # goals answered as superseded since the last log line
+        self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
         # executor callbacks at their rates (rclpy spends about a millisecond on each).
         self.states = LatestMessage(self, JointState, 'joint_states')
@@ -165,14 +173,22 @@ class PlannerNode(Node):
         The plan starts ``delay`` s from now and the trajectory is stamped to
         start then, so planning and delivery time never make the arm jump and
         the plan's clock is the controller's. While the controller publishes a
-        fresh reference, the start state is that reference extrapolated from
-        its stamp to the start time; otherwise the measured state, at rest.
-        ``reference`` and ``measured`` (from :meth:`measured`) are snapshots taken
-        when the goal came.
+        fresh reference, the start state is where that reference will be at the
+        start time: on the plan this planner sent last, when the reference is
+        following it (the exact state, even across the plan's end); else the
+        reference extrapolated from its stamp with its velocity and acceleration
+        (another client's trajectory). Without a reference, the measured state,
+        at rest. ``reference`` and ``measured`` (from :meth:`measured`) are
+        snapshots taken when the goal came.
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
             q, qd, qdd, stamp = reference
+            if self._sent is not None and stamp > 0:
+                sent, t0 = self._sent
+                n = q.size
+                if np.abs(sent.state_at(stamp - t0)[0][:n] - q).max() < FOLLOWING:
+                    return tuple(x[:n].copy() for x in sent.state_at(t_start - t0)), 'reference', t_start
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return (q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), 'reference', t_start
         if measured is None:
@@ -187,10 +203,31 @@ class PlannerNode(Node):
             raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
                              '(no TF here: give poses in the base frame, or leave frame_id empty)')
 
+    def _newest(self, sub, msg, kind):
+        """The newest goal waiting on ``sub`` (``msg`` or a later one); every older one is
+        answered at once as superseded, without planning it (a burst never builds a backlog)."""
+        while True:
+            got = sub.handle.take_message(sub.msg_type, False)
+            if got is None:
+                return msg
+            self._supersede(kind, msg.header)
+            msg = got[0]
+
+    def _supersede(self, kind, header):
+        self.pub_status.publish(status('picking_planner', WARN, f'{kind} goal superseded by a newer goal before '
+                                       'it was planned', goal=stamp_key(header.stamp), kind=kind))
+        self._superseded += 1
+        if self._now() - self._superseded_logged > 1.0:
+            self.get_logger().warn(f'{self._superseded} goals superseded by newer ones before they were planned')
+            self._superseded, self._superseded_logged = 0, self._now()
+
     def _on_goal_pose(self, msg):
+        msg = self._newest(self.sub_pose, msg, 'pose')
         self._handle('pose', msg.header, lambda start, _: self.planner.plan_pose(start, self._pose(msg)))
 
     def _on_goal_path(self, msg):
+        msg = self._newest(self.sub_path, msg, 'path')
+
         def plan(start, _):
             if not msg.poses:
                 raise ValueError('goal_path has no poses')
@@ -198,6 +235,7 @@ class PlannerNode(Node):
         self._handle('path', msg.header, plan)
 
     def _on_pick_target(self, msg):
+        msg = self._newest(self.sub_pick, msg, 'pick')
         self._handle('pick', msg.header, lambda start, gripper: PickCycle(self.planner, self.pick).plan(
             start, self._pose(msg), gripper_start=gripper))
 
@@ -224,8 +262,11 @@ class PlannerNode(Node):
         key = stamp_key(header.stamp)
         measured = self.measured()
         if measured is None:
-            # Just started: discovery of the arm's joint_states may still be running.
-            self.pending.append((kind, header, plan_fn, self._now()))
+            # Just started: discovery of the arm's joint_states may still be running. Only
+            # the newest goal waits; an older one is superseded (memory stays bounded).
+            for old_kind, old_header, _, _ in self.pending:
+                self._supersede(old_kind, old_header)
+            self.pending = [(kind, header, plan_fn, self._now())]
             return
         t0 = time.perf_counter()
         try:
@@ -253,6 +294,7 @@ class PlannerNode(Node):
                                     'the plan was not sent')
             return
         self._publish(plan, t_start)
+        self._sent = (plan.trajectory, t_start)
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
         self.pub_status.publish(status(

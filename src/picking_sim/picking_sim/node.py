@@ -118,6 +118,7 @@ class SimNode(Node):
         start = time.monotonic()
         t0 = self.get_clock().now().nanoseconds * 1e-9
         done = 0
+        commanded = False
         while not self._stop.is_set():
             due = int((time.monotonic() - start) / dt) + 1 - done
             if due > 0:
@@ -128,9 +129,19 @@ class SimNode(Node):
                         done += 1
                         if done % self.publish_every == 0:
                             self._publish(t0 + done * dt)
+                    if self.servo.commanded != commanded:
+                        commanded = self.servo.commanded
+                        self._say_commanded(commanded)
             next_deadline = start + (done + 1) * dt
             # Always sleep a little: a real-time thread that never sleeps starves the rest.
             time.sleep(max(next_deadline - time.monotonic(), 5e-5))
+
+    def _say_commanded(self, commanded):
+        if commanded:
+            self.get_logger().info('joint_commands flowing: following them')
+        else:
+            self.get_logger().warn(f'no joint_commands for {self.servo.command_timeout} s: holding the last '
+                                   'commanded position until a controller commands again')
 
     def _publish(self, t_state):
         q = self.servo.q

@@ -102,14 +102,19 @@ class Servo:
         self.torque = np.zeros(n)
         # The reference held between commands: hold the start position.
         self.ref_q, self.ref_qd, self.ref_qdd = self.q.copy(), np.zeros(n), np.zeros(n)
-        self._since_command = 0
         self._hold_after = max(1, int(round(self.command_timeout / self.dt)))
+        self._since_command = self._hold_after          # no command yet: holding
         # Anti-windup: the integral never asks for more than the torque limit.
         self._integral_limit = self.max_torque / np.maximum(self.ki, 1e-12)
 
     @property
     def n_joints(self):
         return self.q.size
+
+    @property
+    def commanded(self):
+        """True while commands come (the reference moves on); False once it holds for lack of them."""
+        return self._since_command < self._hold_after
 
     def command(self, q, qd=None, qdd=None, age=0.0):
         """Set the reference (position, and optionally velocity and acceleration feedforward).

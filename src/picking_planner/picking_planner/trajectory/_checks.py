@@ -35,14 +35,20 @@ def as_joint_vector(x, name: str, n: int | None = None) -> np.ndarray:
     return arr
 
 
+#: Durations outside this range (s) are input errors, not motions: shorter than a microsecond
+#: or longer than about eleven days, their powers under- or overflow in the polynomials.
+MIN_DURATION, MAX_DURATION = 1e-6, 1e6
+
+
 def as_duration(duration, name: str = 'duration') -> float:
-    """A finite, strictly positive number of seconds."""
+    """A finite number of seconds in [MIN_DURATION, MAX_DURATION]."""
     try:
         value = float(duration)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f'{name} must be a number of seconds') from exc
-    if not np.isfinite(value) or value <= 0.0:
-        raise ValueError(f'{name} must be a finite number of seconds > 0, got {duration!r}')
+    if not MIN_DURATION <= value <= MAX_DURATION:
+        raise ValueError(f'{name} must be a number of seconds between {MIN_DURATION:g} and {MAX_DURATION:g}, '
+                         f'got {duration!r}')
     return value
 
 
@@ -87,7 +93,7 @@ def as_durations(durations, m: int) -> np.ndarray:
         arr = np.full(m, float(arr))
     if arr.ndim != 1 or arr.size != m:
         raise ValueError(f'durations must have one value per segment ({m}), got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-        raise ValueError(f'durations must be finite and > 0 s, got {arr.tolist()}')
+    if not np.all((arr >= MIN_DURATION) & (arr <= MAX_DURATION)):
+        raise ValueError(f'durations must be between {MIN_DURATION:g} and {MAX_DURATION:g} s, got {arr.tolist()}')
     return arr
 
