@@ -207,24 +207,19 @@ class PickCycle:
     def _quickest_place(self, poses, q_lift, home):
         """P4 and P5 turned about the vertical for the quickest transfer and return."""
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
-        best = None
-        for yaw in np.radians(np.arange(-180, 180, 30)):
-            turn = np.eye(4)
-            turn[:3, :3] = Rotation.from_euler('z', yaw).as_matrix()
-            P4, P5 = poses['P4'].copy(), poses['P5'].copy()
-            P4[:3, :3] = turn[:3, :3] @ P4[:3, :3]
-            P5[:3, :3] = turn[:3, :3] @ P5[:3, :3]
-            try:
-                q4 = self.arm.check_reachable(P4, seed=q_lift)
-                q5 = self.arm.check_reachable(P5, seed=q4)
-            except Unreachable:
-                continue
-            cost = np.max(np.abs(q4 - q_lift) / vmax) + np.max(np.abs(home - q4) / vmax)
-            if best is None or cost < best[0]:
-                best = (cost, P4, P5, q4, q5)
-        if best is None:
+        # Every turn at once: 12 candidates in 30 degree steps, one batched IK each for P4 and P5.
+        turns = Rotation.from_euler('z', np.radians(np.arange(-180, 180, 30))[:, None]).as_matrix()
+        P4, P5 = np.repeat(poses['P4'][None], len(turns), 0), np.repeat(poses['P5'][None], len(turns), 0)
+        P4[:, :3, :3] = turns @ poses['P4'][:3, :3]
+        P5[:, :3, :3] = turns @ poses['P5'][:3, :3]
+        q4, ok4, _ = self.arm.ik_batch(P4, q_lift)
+        q5, ok5, _ = self.arm.ik_batch(P5, np.where(ok4[:, None], q4, q_lift))
+        ok = ok4 & ok5
+        if not ok.any():
             raise Unreachable('P4 (above the box): no turn of the gripper about the vertical reaches the box')
-        return {**poses, 'P4': best[1], 'P5': best[2]}, best[3], best[4]
+        cost = np.max(np.abs(q4 - q_lift) / vmax, axis=1) + np.max(np.abs(home - q4) / vmax, axis=1)
+        best = int(np.argmin(np.where(ok, cost, np.inf)))
+        return {**poses, 'P4': P4[best], 'P5': P5[best]}, q4[best], q5[best]
 
     def _clearance(self, qa, qb):
         """The transfer's via point: halfway in joint space, the shoulder lifted by ``transfer_lift``."""

@@ -30,11 +30,14 @@ def as_joint_vector(x, name: str, n: int | None = None) -> np.ndarray:
         raise ValueError(f'{name} must be a number or a non-empty 1-D sequence, got shape {arr.shape}')
     if n is not None and arr.size != n:
         raise ValueError(f'{name} has {arr.size} values, expected {n} (one per joint)')
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f'{name} must be finite, got {arr.tolist()}')
+    if not np.all(np.abs(arr) <= MAX_MAGNITUDE):
+        raise ValueError(f'{name} must be finite and within ±{MAX_MAGNITUDE:g}, got {arr.tolist()}')
     return arr
 
 
+#: Joint values (positions, velocities, accelerations, limits) beyond this magnitude are input
+#: errors: no joint turns a billion radians, and the polynomials of such values overflow.
+MAX_MAGNITUDE = 1e9
 #: Durations outside this range (s) are input errors, not motions: shorter than a microsecond
 #: or longer than about eleven days, their powers under- or overflow in the polynomials.
 MIN_DURATION, MAX_DURATION = 1e-6, 1e6
@@ -78,8 +81,8 @@ def as_points(points, name: str = 'points', min_points: int = 2) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[0] < min_points or arr.shape[1] < 1:
         raise ValueError(f'{name} must have at least {min_points} rows of joint positions, '
                          f'got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f'{name} must be finite')
+    if not np.all(np.abs(arr) <= MAX_MAGNITUDE):
+        raise ValueError(f'{name} must be finite and within ±{MAX_MAGNITUDE:g}')
     return arr
 
 
