@@ -75,10 +75,11 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
     return q, ok.all(axis=-1)
 
 
-def _nearest_images(values, first, seed, lower, upper, revolute):
+def _nearest_images(values, first, seed, lower, upper, revolute, bound=math.inf):
     """Joints ``first, first+1, ...`` moved to their images nearest the seed within the limits.
 
-    Returns ``(list, squared distance to the seed)``, or None if a joint cannot be placed.
+    Returns ``(list, squared distance to the seed)``, or None if a joint cannot be placed
+    or the distance reaches ``bound`` (a nearer solution is known: stop early).
     """
     out, dist = [], 0.0
     for j, v in enumerate(values, start=first):
@@ -90,6 +91,8 @@ def _nearest_images(values, first, seed, lower, upper, revolute):
                 return None
         out.append(v)
         dist += (v - sj) ** 2
+        if dist >= bound:
+            return None
     return out, dist
 
 
@@ -198,12 +201,12 @@ class _ClosedForm:
         s0, s2 = seed[0], seed[2]
         arms.sort(key=lambda a: abs(math.remainder(a[0] - s0, TWO_PI)) + abs(a[2] - s2))
         for arm_q in arms:
-            head = _nearest_images(arm_q, 0, seed, lower, upper, revolute)
-            if head is None or head[1] >= best_d:
+            head = _nearest_images(arm_q, 0, seed, lower, upper, revolute, best_d)
+            if head is None:
                 continue
             for wrist in self._wrist_one(arm_q, seed):
-                tail = _nearest_images(wrist, 3, seed, lower, upper, revolute)
-                if tail is not None and head[1] + tail[1] < best_d:
+                tail = _nearest_images(wrist, 3, seed, lower, upper, revolute, best_d - head[1])
+                if tail is not None:
                     best, best_d = head[0] + tail[0], head[1] + tail[1]
         if best is None:
             return None, 'beyond joint limits: every IK solution puts a joint outside its limits'
