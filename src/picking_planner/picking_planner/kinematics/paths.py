@@ -154,7 +154,19 @@ def _sequential(arm, poses, t, seed, max_joint_step):
 
 def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6):
     """Raise Unreachable naming the first joint and time that break a position,
-    velocity or acceleration limit of ``arm``."""
+    velocity or acceleration limit of ``arm``.
+
+    ``t`` has shape (N,); ``q``, ``qd``, ``qdd`` shape (N, dof) (ValueError otherwise, and
+    for non-finite values).
+    """
+    t = np.asarray(t, dtype=float)
+    arrays = [np.asarray(x, dtype=float) for x in (q, qd, qdd)]
+    if t.ndim != 1 or any(a.shape != (t.size, arm.dof) for a in arrays):
+        raise ValueError(f'check_joint_limits needs times (N,) and joint values (N, {arm.dof}), got '
+                         f'{t.shape} and {[a.shape for a in arrays]}')
+    if not (np.all(np.isfinite(t)) and all(np.all(np.isfinite(a)) for a in arrays)):
+        raise ValueError('check_joint_limits needs finite times and joint values')
+    q, qd, qdd = arrays
     for name, values, lo, hi, unit in (
             ('position', q, arm.lower, arm.upper, 'rad'),
             ('velocity', qd, -arm.max_velocity, arm.max_velocity, 'rad/s'),
