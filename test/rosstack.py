@@ -105,9 +105,10 @@ class Client(Node):
         self.lock = threading.Lock()
         self.states, self.commands, self.planner_status, self.controller_status = [], [], [], []
         self.create_subscription(JointState, 'joint_states', self._rec(self.states), RELIABLE)
-        self.create_subscription(DiagnosticStatus, 'planner_status', self._rec(self.planner_status), RELIABLE)
-        self.create_subscription(DiagnosticStatus, 'controller_status', self._rec(self.controller_status),
-                                 RELIABLE)
+        self._planner_sub = self.create_subscription(DiagnosticStatus, 'planner_status',
+                                                     self._rec(self.planner_status), RELIABLE)
+        self._controller_sub = self.create_subscription(DiagnosticStatus, 'controller_status',
+                                                        self._rec(self.controller_status), RELIABLE)
         self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', RELIABLE)
         self.pub_path = self.create_publisher(PoseArray, 'goal_path', RELIABLE)
         self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', RELIABLE)
@@ -146,6 +147,9 @@ class Client(Node):
         self.wait_for(lambda: self.pub_pose.get_subscription_count() > 0
                       and self.pub_traj.get_subscription_count() > 0, timeout, 'planner and controller')
         self.wait_for(lambda: self.pub_traj.get_subscription_count() > 0, timeout, 'the controller')
+        # Statuses are volatile: hear the planner and the controller before asking them anything.
+        self.wait_for(lambda: self._planner_sub.get_publisher_count() > 0
+                      and self._controller_sub.get_publisher_count() > 0, timeout, 'planner and controller statuses')
         # The controller commands only once it has feedback: wait for a few of its commands.
         seen = []
         probe = self.create_subscription(JointState, 'joint_commands', lambda m: seen.append(1),
