@@ -65,8 +65,9 @@ class Watcher:
 
 
 def _stacks(n, rate, log_dir):
-    rate_args = ('-p', f'update_rate:={rate}')
-    sim_args = ('-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}')
+    # The loop threads under SCHED_FIFO as config/controller.yaml and config/sim.yaml set them (where allowed).
+    rate_args = ('-p', f'update_rate:={rate}', '-p', 'thread_priority:=50')
+    sim_args = ('-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}', '-p', 'thread_priority:=49')
     return [Stack(f'/bench{i}', log_dir, sim_args=sim_args, controller_args=rate_args) for i in range(n)]
 
 

@@ -48,7 +48,7 @@ class ControllerNode(Node):
         get = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
         urdf = get('urdf_path', '')
         self.rate = float(get('update_rate', 1000.0))
-        self.thread_priority = int(get('thread_priority', 50))
+        self.thread_priority = int(get('thread_priority', 0))
         if not 0 <= self.thread_priority <= 99:
             raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         if not self.rate > 0:

@@ -40,7 +40,9 @@ RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 BURST = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: s a plan must leave between the end of planning and its start: sending it, and the
 #: controller's checks (a few ms per hundred points).
-DELIVERY = 0.05
+DELIVERY = 0.08
+#: s a first goal of a kind is expected to take to plan (later ones: what the last took).
+FIRST_PLANNING = 0.05
 #: rad: the controller's reference is following our last plan when within this of it.
 FOLLOWING = 1e-3
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
@@ -190,7 +192,13 @@ class PlannerNode(Node):
                 if np.abs(sent.state_at(stamp - t0)[0][:n] - q).max() < FOLLOWING:
                     return tuple(x[:n].copy() for x in sent.state_at(t_start - t0)), 'reference', t_start
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
-            return (q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), 'reference', t_start
+            # Held within the limits: carried on too far, a constant acceleration would cross them
+            # (the controller's lead-in absorbs the small difference).
+            arm = self.arm
+            q1 = np.clip(q + qd * dt + 0.5 * qdd * dt * dt, arm.lower, arm.upper)
+            qd1 = np.clip(qd + qdd * dt, -arm.max_velocity, arm.max_velocity)
+            qdd1 = np.clip(qdd, -arm.max_acceleration, arm.max_acceleration)
+            return (q1, qd1, qdd1), 'reference', t_start
         if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]
@@ -276,7 +284,7 @@ class PlannerNode(Node):
                 # goal took that long last time), stamped so; it must be planned with at least
                 # DELIVERY s to spare for sending and for the controller, else planned again
                 # further ahead.
-                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, 0.0)
+                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, FIRST_PLANNING)
                 ref = self._reference()
                 for _ in range(4):
                     start, source, t_start = self.start_state(delay, ref, measured)

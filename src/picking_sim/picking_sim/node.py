@@ -80,7 +80,7 @@ class SimNode(Node):
             'noise_std': 0.0, 'command_timeout': 0.05,
             'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
             'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
-            'servo.velocity_margin': 1.2, 'thread_priority': 49,
+            'servo.velocity_margin': 1.2, 'thread_priority': 0,
         }
         out = {}
         for name, value in defaults.items():
