@@ -21,6 +21,8 @@ from .sampler import from_points
 
 #: Shortest lead-in from the current reference to a new trajectory's first point, s.
 MIN_LEAD = 0.02
+#: Lead-ins tried in turn when a shorter one would break a limit (a trajectory that came late), s.
+LEADS = (MIN_LEAD, 0.05, 0.1, 0.2)
 
 
 @dataclass(frozen=True)
@@ -291,24 +293,35 @@ class ControllerCore:
         rel = times + offset
         if m and rel[-1] <= MIN_LEAD:
             raise ValueError('the trajectory ends in the past (or within 20 ms)')
-        # Points due within MIN_LEAD are dropped and replaced by a lead-in from the
-        # current reference: a lead-in shorter than that would need a violent move.
-        keep = rel > MIN_LEAD
-        keep[-1] = True
-        dropped = m - int(keep.sum())
-        if dropped:
-            # The last dropped point is where the plan expects the arm about now.
-            gap = np.abs(pos[~keep][-1] - held).max()
-            if gap > self.tol.path:
-                raise ValueError(f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the '
-                                 f'current reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); '
-                                 'give the first point a later time_from_start to move there smoothly')
-            rel, pos = rel[keep], pos[keep]
-            vel = None if vel is None else vel[keep]
-            acc = None if acc is None else acc[keep]
         self._check_limits(pos, vel, acc, times=rel)
-        traj = from_points(rel, pos, vel, acc, start=ref)
-        self._check_spline(traj)
+        # Points due within the lead are dropped and replaced by a lead-in from the current
+        # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
+        # catches up over a longer one (as long as the plan expects the arm near its reference).
+        traj = error = None
+        for lead in LEADS:
+            if rel[-1] <= lead:
+                break
+            keep = rel > lead
+            if not keep.all():
+                # The last dropped point is where the plan expects the arm at the end of the lead.
+                gap = np.abs(pos[~keep][-1] - held).max()
+                if gap > self.tol.path:
+                    error = error or ValueError(
+                        f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the current '
+                        f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
+                        'point a later time_from_start to move there smoothly')
+                    break
+            try:
+                traj = from_points(rel[keep], pos[keep], None if vel is None else vel[keep],
+                                   None if acc is None else acc[keep], start=ref)
+                self._check_spline(traj)
+                break
+            except ValueError as exc:
+                traj, error = None, exc
+                if keep.all():                   # not late: the trajectory itself is at fault
+                    break
+        if traj is None:
+            raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}))
 

@@ -148,3 +148,17 @@ def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
     assert np.all(steps <= np.array([2, 2, 0.3]) * 1e-3 * 1.02)             # never faster than the limit
     assert len(reports) == 1 and reports[0].level == 'WARN' and 'command limited' in reports[0].message
     assert c.limited > 0
+
+
+def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
+    c = core(path=0.3)
+    # Planned to start 40 ms ago from where the arm holds, at 1 rad/s: a 20 ms lead-in would need
+    # more than the 2 rad/s limit to catch up; a longer one does not.
+    t = np.arange(0.0, 1.01, 0.01)
+    q = np.column_stack([np.minimum(t, 1.0), np.zeros_like(t)])
+    v = np.column_stack([np.ones_like(t), np.zeros_like(t)])
+    v[-1] = 0.0
+    event = c.load(['a', 'b'], t, q, v, [], start=9.96, now=10.0)
+    assert event.level == 'OK', event.message
+    speeds = [abs(c.command(10.0 + k * 1e-3)[0][1][0]) for k in range(300)]
+    assert max(speeds) <= 2.0 + 1e-9
