@@ -107,7 +107,13 @@ class ControllerCore:
                                       f'{self.measured_q.round(4).tolist()}',
                                 {'positions': self.measured_q.round(5).tolist()}))
         elif not self.feedback_ok:
-            events.append(Event('OK', 'feedback restored: holding; send a new trajectory to move'))
+            # The arm may have been moved, or its driver restarted elsewhere, while the feedback
+            # was gone: hold where it is now, never drive it back to the old reference.
+            self._hold_at(self.measured_q, now)
+            self._last_command = None
+            self.mode = 'holding'
+            events.append(Event('OK', 'feedback restored: holding the measured position '
+                                      f'{self.measured_q.round(4).tolist()}; send a new trajectory to move'))
         self.feedback_ok = True
         if self.mode == 'moving':
             events += self._check_tracking(stamp if stamp > 0 else now, now)

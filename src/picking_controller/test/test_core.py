@@ -101,6 +101,14 @@ def test_watchdog_reports_feedback_lost_and_refuses_to_move_blind():
     assert 'feedback restored' in events[0].message
 
 
+def test_restored_feedback_from_a_moved_arm_is_held_where_it_is_not_driven_back():
+    c = core(state_timeout=0.2)
+    c.tick(0.3)                                               # feedback lost, holding at 0
+    c.on_state([0.7, -0.4, 0.05], None, 0.5, now=0.5)        # a restarted driver reports elsewhere
+    (q, qd, _), _ = c.command(0.501)
+    assert q == pytest.approx([0.7, -0.4, 0.05]) and np.all(qd == 0)       # no step back to 0
+
+
 def test_future_start_stamp_waits_then_moves():
     c = core()
     ev = c.load(['a', 'b'], [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [], [], 5.0, now=4.0)
