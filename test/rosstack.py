@@ -200,6 +200,7 @@ class Client(Node):
 
     def close(self):
         self._exec.shutdown()
+        self._thread.join(timeout=2.0)        # the spin thread ends before the node goes
         self.destroy_node()
 
 

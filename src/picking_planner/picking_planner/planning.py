@@ -233,18 +233,21 @@ class Planner:
         q, qd, qdd = (np.asarray(x, float) for x in start)
         if np.abs(qd).max() < 1e-4 and np.abs(qdd).max() < 1e-3:
             return None, q
-        # Longer until the stop keeps the velocity and acceleration limits (a start already
-        # decelerating hard needs more time than its speed alone says).
+        # The shortest of a few stops that keeps the limits (a start already decelerating hard
+        # needs more time than its speed alone says); none does: the first, the shortest.
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, np.inf)
         amax = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, np.inf)
-        least = 0.05
-        for _ in range(12):
+        first = None
+        for least in (0.05, 0.1, 0.2, 0.4):
             stop = trajectory.brake(q, qd, qdd, self.arm.max_acceleration, min_duration=least)
-            _, v, a = stop.sample(np.linspace(0.0, stop.duration, 101))
+            if first is None:
+                first = stop
+            p, v, a = stop.sample(np.linspace(0.0, stop.duration, 101))
             if np.all(np.abs(v) <= np.maximum(vmax, np.abs(qd)) + 1e-9) and \
-                    np.all(np.abs(a) <= np.maximum(amax, np.abs(qdd)) + 1e-9):
+                    np.all(np.abs(a) <= np.maximum(amax, np.abs(qdd)) + 1e-9) and self.arm.within_limits(p).all():
                 break
-            least = stop.duration * 1.25
+        else:
+            stop = first
         return stop, stop.end_state()[0]
 
     def _join(self, parts, method, cartesian=()):
