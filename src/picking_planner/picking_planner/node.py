@@ -276,6 +276,11 @@ class PlannerNode(Node):
                 self._supersede(old_kind, old_header)
             self.pending = [(kind, header, plan_fn, self._now())]
             return
+        # Before planning: waiting for discovery afterwards would make the plan's start stale.
+        if not self._controller_listens():
+            self._refuse(kind, key, f'no controller subscribes to {self.pub_traj.topic_name}: '
+                                    'the plan was not sent')
+            return
         t0 = time.perf_counter()
         try:
             with self.lock:
@@ -297,10 +302,6 @@ class PlannerNode(Node):
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
         self._planning_time[kind] = planning_ms * 1e-3
-        if not self._controller_listens():
-            self._refuse(kind, key, f'no controller subscribes to {self.pub_traj.topic_name}: '
-                                    'the plan was not sent')
-            return
         self._publish(plan, t_start)
         self._sent = (plan.trajectory, t_start)
         summary = plan.summary(self.planner.settings.sample_period)
