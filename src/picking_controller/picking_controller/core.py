@@ -11,7 +11,7 @@ Times are seconds on one clock (the node's ROS clock).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -67,10 +67,15 @@ class ControllerCore:
     tolerances : Tolerances
     optional : sequence of str
         Joints a trajectory may leave out (a gripper): they hold their reference.
+    stall_limit : float
+        s: ticks farther apart than this (a stalled loop) delay the trajectory by
+        the excess instead of making the reference jump ahead (see :meth:`advance`).
     """
 
     def __init__(self, names, lower, upper, max_velocity, max_acceleration, tolerances=Tolerances(),
-                 optional=()):
+                 optional=(), stall_limit=0.05):
+        if not stall_limit > 0:
+            raise ValueError(f'stall_limit must be > 0 s, got {stall_limit}')
         self.names = list(names)
         self.optional = set(optional)
         self.n = len(self.names)
@@ -92,6 +97,10 @@ class ControllerCore:
         self._last_command = None        # (q, time) of the last command sent
         self.limited = 0                 # ticks whose command had to be limited
         self._limited_version = -1
+        self.stall_limit = float(stall_limit)
+        self.delayed = 0.0               # s the trajectories were delayed by stalled ticks, in all
+        self._last_tick = None
+        self._stall_reported = -np.inf
 
     # -- feedback -------------------------------------------------------------
     def on_state(self, q, qd, stamp, now):
@@ -151,6 +160,36 @@ class ControllerCore:
         return []
 
     # -- the reference ------------------------------------------------------------
+    def advance(self, now):
+        """Start a tick at ``now``, before its feedback and command; returns events.
+
+        A tick that comes more than ``stall_limit`` after the previous one (the
+        loop was stalled: no real-time guarantee here) delays the active and any
+        scheduled trajectory by the excess. The reference then goes on from where
+        the arm was last told to be, instead of jumping ahead by the stall (a
+        drive extrapolates a late command for a short time, then holds: set
+        ``stall_limit`` to the drive's command timeout). Reported at most once a second.
+        """
+        last, self._last_tick = self._last_tick, now
+        if last is None or self.traj is None:
+            return []
+        excess = now - last - self.stall_limit
+        if not excess > 0:
+            return []
+        self.t0 += excess
+        if self.next is not None:
+            self.next = replace(self.next, t_splice=self.next.t_splice + excess)
+        self.version += 1                # a trajectory prepared before the stall is prepared again
+        if self.mode != 'moving':
+            return []
+        self.delayed += excess
+        if now - self._stall_reported < 1.0:
+            return []
+        self._stall_reported = now
+        return [Event('WARN', f'control loop stalled for {now - last:.3f} s: the trajectory goes on '
+                              f'{excess:.3f} s later instead of jumping ahead',
+                      {'stall': now - last, 'delay': excess, 'total_delay': self.delayed})]
+
     def reference(self, now):
         """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
         if self.next is not None and now >= self.next.t_splice:

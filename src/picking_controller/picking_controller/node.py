@@ -59,7 +59,7 @@ class ControllerNode(Node):
                          state_timeout=get('state_timeout', 0.5))
         self.arm = ArmModel.from_urdf(urdf or default_urdf())
         self.core = ControllerCore(self.arm.all_joint_names, *self.arm.all_limits, tol,
-                                   optional=self.arm.extra_joint_names)
+                                   optional=self.arm.extra_joint_names, stall_limit=get('stall_limit', 0.05))
         self.lock = threading.Lock()
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
@@ -88,8 +88,11 @@ class ControllerNode(Node):
     def _report(self, events):
         for e in events:
             self.pub_status.publish(status('picking_controller', LEVELS[e.level], e.message, **e.values))
+            # One logging call per severity: rclpy ties a call site to one severity.
             if e.level == 'ERROR':
                 self.get_logger().error(e.message)
+            elif e.level == 'WARN':
+                self.get_logger().warning(e.message)
             else:
                 self.get_logger().info(e.message)
 
@@ -155,14 +158,16 @@ class ControllerNode(Node):
         while not self._stop.is_set():
             stats.record(time.monotonic())
             next_t += period
+            ns = time.time_ns()                  # the controller's clock (see now())
+            now = ns * 1e-9
+            with self.lock:
+                events = self.core.advance(now)  # a stall delays the trajectory: before the feedback check
             state = self.states.take()
             if state is not self._last_state:
                 self._last_state = state
                 self._on_state(state)
-            ns = time.time_ns()                  # the controller's clock (see now())
-            now = ns * 1e-9
             with self.lock:
-                events = self.core.tick(now)
+                events += self.core.tick(now)
                 ref, limited = self.core.command(now)
                 events += limited
             if events:

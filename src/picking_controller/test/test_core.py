@@ -170,3 +170,43 @@ def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
     assert event.level == 'OK', event.message
     speeds = [abs(c.command(10.0 + k * 1e-3)[0][1][0]) for k in range(300)]
     assert max(speeds) <= 2.0 + 1e-9
+
+
+def test_a_stalled_tick_delays_the_trajectory_instead_of_jumping_ahead():
+    c = core()
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    scheduled = c.prepare(['a', 'b'], [1.0], [[0.0, 0.0]], [], [], 0.0, now=1.2)
+    assert c.commit(scheduled, now=1.0).level == 'OK'         # takes over at 1.2 s
+    for t in np.arange(0.0, 0.5, 0.001):
+        assert c.advance(t) == []
+        c.command(t)
+    before = c.reference(0.499)[0]
+    events = c.advance(0.799)                                 # 300 ms without a tick
+    assert len(events) == 1 and 'stalled for 0.300 s' in events[0].message
+    assert events[0].values['delay'] == pytest.approx(0.25)   # the first 50 ms (stall_limit) still count
+    after = c.reference(0.799)[0]
+    assert after == pytest.approx(c.traj.state_at(0.549)[0])
+    assert np.abs(after - before).max() < 2.0 * 0.051          # within vmax of the last command, no jump
+    (q, _, _), limited = c.command(0.799)
+    assert limited == [] and q == pytest.approx(after)
+    assert c.next.t_splice == pytest.approx(1.45)              # the scheduled one moved with it
+    assert c.advance(0.8) == []
+    assert c.advance(1.2) == []                                # reported at most once a second ...
+    assert c.delayed == pytest.approx(0.25 + 0.35)            # ... but every delay counts
+    assert c.advance(2.5)[0].values['delay'] == pytest.approx(1.25)
+
+
+def test_a_tracking_check_after_a_stall_compares_with_the_delayed_reference():
+    c = core(path=0.05)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    c.advance(0.5)
+    c.advance(1.0)                                            # stalled: 0.45 s later
+    held = c.traj.state_at(0.55)[0]                           # where the drive held the arm
+    assert c.on_state(held, [0, 0, 0], 1.0, now=1.0) == []
+    assert c.mode == 'moving'
+
+
+@pytest.mark.parametrize('limit', [0.0, -1.0, np.nan])
+def test_stall_limit_must_be_positive(limit):
+    with pytest.raises(ValueError, match='stall_limit'):
+        ControllerCore(NAMES, [-3] * 3, [3] * 3, [2] * 3, [10] * 3, stall_limit=limit)
