@@ -16,6 +16,7 @@ from __future__ import annotations
 import array
 import threading
 import time
+from collections import OrderedDict
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -24,15 +25,16 @@ from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .kinematics import ArmModel, Unreachable, pose_matrix
 from .pick_cycle import PickCycle, PickSettings
-from .planning import Planner, PlannerSettings
+from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
-from .ros_common import ERROR, OK, WARN, LatestMessage, reorder, run_node, status
+from .ros_common import ERROR, OK, WARN, LatestMessage, reorder, run_node, status, status_values
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -60,6 +62,10 @@ def msg_pose(pose):
 
 def stamp_key(stamp):
     return f'{stamp.sec}.{stamp.nanosec:09d}'
+
+
+ZERO_KEY = '0.000000000'
+GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
 
 
 class PlannerNode(Node):
@@ -93,6 +99,7 @@ class PlannerNode(Node):
         self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
+        self._goals = OrderedDict()   # goal key -> [its bytes, its answer]: a goal sent again is answered again
         self._superseded = 0          # goals answered as superseded since the last log line
         self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
@@ -192,13 +199,8 @@ class PlannerNode(Node):
                 if np.abs(sent.state_at(stamp - t0)[0][:n] - q).max() < FOLLOWING:
                     return tuple(x[:n].copy() for x in sent.state_at(t_start - t0)), 'reference', t_start
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
-            # Held within the limits: carried on too far, a constant acceleration would cross them
-            # (the controller's lead-in absorbs the small difference).
-            arm = self.arm
-            q1 = np.clip(q + qd * dt + 0.5 * qdd * dt * dt, arm.lower, arm.upper)
-            qd1 = np.clip(qd + qdd * dt, -arm.max_velocity, arm.max_velocity)
-            qdd1 = np.clip(qdd, -arm.max_acceleration, arm.max_acceleration)
-            return (q1, qd1, qdd1), 'reference', t_start
+            return feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), \
+                'reference', t_start
         if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]
@@ -221,9 +223,39 @@ class PlannerNode(Node):
             self._supersede(kind, msg.header)
             msg = got[0]
 
+    def _repeated(self, msg):
+        """True when ``msg`` is a goal already taken (same stamp, same content): its answer
+        is sent again and it is not planned again.
+
+        A sender that hears no answer sends its goal again: a message published just as
+        discovery completes can be lost (the sender already sees this subscription, this
+        node does not yet see the sender). A zero stamp gives a goal no identity.
+        """
+        key = stamp_key(msg.header.stamp)
+        if key == ZERO_KEY:
+            return False
+        data = serialize_message(msg)
+        seen = self._goals.get(key)
+        if seen is not None and seen[0] == data:
+            if seen[1] is not None:           # (None: it waits for the first joint_states)
+                self.pub_status.publish(seen[1])
+            self.get_logger().info(f'goal {key} came again: its answer was sent again, it is not planned twice')
+            return True
+        self._goals[key] = [data, None]
+        while len(self._goals) > GOALS_KEPT:
+            self._goals.popitem(last=False)
+        return False
+
+    def _answer(self, msg):
+        """Publish the answer to a goal (kept, should the goal come again)."""
+        seen = self._goals.get(status_values(msg).get('goal'))
+        if seen is not None:
+            seen[1] = msg
+        self.pub_status.publish(msg)
+
     def _supersede(self, kind, header):
-        self.pub_status.publish(status('picking_planner', WARN, f'{kind} goal superseded by a newer goal before '
-                                       'it was planned', goal=stamp_key(header.stamp), kind=kind))
+        self._answer(status('picking_planner', WARN, f'{kind} goal superseded by a newer goal before '
+                            'it was planned', goal=stamp_key(header.stamp), kind=kind))
         self._superseded += 1
         if self._now() - self._superseded_logged > 1.0:
             self.get_logger().warn(f'{self._superseded} goals superseded by newer ones before they were planned')
@@ -231,10 +263,14 @@ class PlannerNode(Node):
 
     def _on_goal_pose(self, msg):
         msg = self._newest(self.sub_pose, msg, 'pose')
+        if self._repeated(msg):
+            return
         self._handle('pose', msg.header, lambda start, _: self.planner.plan_pose(start, self._pose(msg)))
 
     def _on_goal_path(self, msg):
         msg = self._newest(self.sub_path, msg, 'path')
+        if self._repeated(msg):
+            return
 
         def plan(start, _):
             if not msg.poses:
@@ -244,6 +280,8 @@ class PlannerNode(Node):
 
     def _on_pick_target(self, msg):
         msg = self._newest(self.sub_pick, msg, 'pick')
+        if self._repeated(msg):
+            return
         self._handle('pick', msg.header, lambda start, gripper: PickCycle(self.planner, self.pick).plan(
             start, self._pose(msg), gripper_start=gripper))
 
@@ -262,8 +300,7 @@ class PlannerNode(Node):
                          'no joint_states received within 2 s: the planner does not know where the arm is')
 
     def _refuse(self, kind, key, reason):
-        self.pub_status.publish(status('picking_planner', ERROR, f'{kind} goal refused: {reason}',
-                                       goal=key, kind=kind))
+        self._answer(status('picking_planner', ERROR, f'{kind} goal refused: {reason}', goal=key, kind=kind))
         self.get_logger().error(f'{kind} goal refused: {reason}')
 
     def _handle(self, kind, header, plan_fn):
@@ -302,18 +339,25 @@ class PlannerNode(Node):
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
         self._planning_time[kind] = planning_ms * 1e-3
-        self._publish(plan, t_start)
+        points = plan.samples(self.planner.settings.sample_period)
+        problem = self._beyond_limits(list(plan.joint_names or self.names), points)
+        if problem:
+            # Checked as the controller will check it: a plan it would reject is never sent as accepted.
+            self._refuse(kind, key, f'the plan {problem} (from a {source} start: the arm\'s motion '
+                                    'cannot be carried on within the limits); try again')
+            return
+        self._publish(plan, t_start, points)
         self._sent = (plan.trajectory, t_start)
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
-        self.pub_status.publish(status(
+        self._answer(status(
             'picking_planner', OK, f'{kind} goal accepted: {plan.method}, {plan.duration:.3f} s',
             goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
             segments=segments, planning_ms=planning_ms, **getattr(plan, 'extra', {})))
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
-    def _controller_listens(self, wait=2.0):
+    def _controller_listens(self, wait=5.0):
         """True once a controller's subscription has matched (discovery may still be running)."""
         end = time.monotonic() + wait
         while self.pub_traj.get_subscription_count() == 0:
@@ -322,8 +366,22 @@ class PlannerNode(Node):
             time.sleep(0.02)
         return True
 
-    def _publish(self, plan, t_start):
-        t, q, qd, qdd = plan.samples(self.planner.settings.sample_period)
+    def _beyond_limits(self, names, points, slack=1e-6):
+        """What the trajectory points ``(t, q, qd, qdd)`` break of the arm's limits, or ''."""
+        t, *values = points
+        every = list(self.arm.all_joint_names)
+        idx = [every.index(n) for n in names]
+        lower, upper, vmax, amax = (np.asarray(x)[idx] for x in self.arm.all_limits)
+        for what, arr, lo, hi in (('position', values[0], lower, upper), ('velocity', values[1], -vmax, vmax),
+                                  ('acceleration', values[2], -amax, amax)):
+            bad = (arr < lo - slack) | (arr > hi + slack)
+            if bad.any():
+                i, j = np.argwhere(bad)[0]
+                return f'breaks the {what} limit of {names[j]} ({arr[i, j]:.4g}) at t = {t[i]:.3f} s'
+        return ''
+
+    def _publish(self, plan, t_start, points):
+        t, q, qd, qdd = points
         msg = JointTrajectory()
         msg.joint_names = list(plan.joint_names or self.names)
         msg.header.stamp.sec = int(t_start)

@@ -168,6 +168,25 @@ class Plan:
                 'peak_velocity': np.abs(qd).max(axis=0), 'peak_acceleration': np.abs(qdd).max(axis=0)}
 
 
+def feasible_start(arm, q, qd, qdd):
+    """An extrapolated reference state held within the limits, as the controller's reference is.
+
+    Carried on too far, a constant acceleration crosses a limit; no plan can start from
+    such a state and keep the limits. A joint at a position limit stops there; one at
+    its velocity limit stops accelerating beyond it; accelerations are clipped. (The
+    controller's lead-in absorbs the small difference from its real reference.)
+    """
+    lo, hi = arm.lower, arm.upper
+    vmax, amax = arm.max_velocity, arm.max_acceleration
+    q1 = np.clip(q, lo, hi)
+    stopped = ((q <= lo) & (qd < 0)) | ((q >= hi) & (qd > 0))
+    qd1 = np.where(stopped, 0.0, np.clip(qd, -vmax, vmax))
+    outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | \
+        ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
+    qdd1 = np.where(outward, 0.0, np.clip(qdd, -amax, amax))
+    return q1, qd1, qdd1
+
+
 class Planner:
     """Plans for one arm; see the module docstring for the methods."""
 

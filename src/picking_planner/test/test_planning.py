@@ -145,3 +145,23 @@ def test_unreachable_apple_names_the_knot_point(arm, planner):
 def test_bad_pick_settings_are_refused(arm, bad):
     with pytest.raises(ValueError):
         PickSettings(**bad).validate(arm)
+
+
+def test_an_extrapolated_start_is_held_within_the_limits_and_every_method_plans_from_it(arm, planner):
+    from picking_planner.planning import feasible_start
+    vmax, amax = arm.max_velocity, arm.max_acceleration
+    # Carried on too far: beyond the elbow's upper limit still moving up, the wrist at its
+    # speed limit still accelerating, the base decelerating inwards (kept).
+    q = HOME.copy()
+    q[2] = arm.upper[2] + 0.1
+    qd = np.array([0.5, 0.0, 1.0, 0.0, 0.0, vmax[5] * 1.5])
+    qdd = np.array([-2.0, 0.0, 3.0, 0.0, 0.0, 5.0])
+    q1, qd1, qdd1 = feasible_start(arm, q, qd, qdd)
+    assert q1[2] == arm.upper[2] and qd1[2] == 0.0 and qdd1[2] == 0.0
+    assert qd1[5] == vmax[5] and qdd1[5] == 0.0
+    assert qd1[0] == 0.5 and qdd1[0] == -2.0
+    assert np.all(np.abs(qdd1) <= amax)
+    goal = pose_matrix([0.55, 0.05, 0.45], DOWN)
+    for method in ('quintic', 'optimal', 'lspb'):
+        plan = planner.plan_pose((q1, qd1, qdd1), goal, method=method)
+        _within_limits(arm, plan)

@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
+RESEND_EVERY = 1.0   # s without an answer before the goal is sent again
 
 
 def build_parser():
@@ -152,10 +153,15 @@ def run(args, node):
     msg.header.stamp = stamp
     node.controller_status.clear()
     t_sent = time.monotonic()
-    pub.publish(msg)
-
-    answer = node.spin_until(lambda: next((m for m in node.planner_status
-                                           if _values(m).get('goal') == key), None), args.timeout)
+    # Sent again while no answer comes: a message sent as discovery completes can be lost
+    # (we see the planner's subscription before it sees us). The planner answers a repeat
+    # of the same goal (same stamp) again without planning it twice.
+    answer, end = None, t_sent + args.timeout
+    while answer is None and time.monotonic() < end:
+        pub.publish(msg)
+        answer = node.spin_until(lambda: next((m for m in node.planner_status
+                                               if _values(m).get('goal') == key), None),
+                                 min(RESEND_EVERY, end - time.monotonic()))
     if answer is None:
         print(f'picking-goal: no answer from the planner within {args.timeout:g} s', file=sys.stderr)
         return EXIT_TIMEOUT
