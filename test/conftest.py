@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -21,3 +22,26 @@ def run_tool():
         return subprocess.run([os.path.join(BIN, name), *map(str, args)], capture_output=True,
                               text=True, timeout=timeout, env=os.environ.copy())
     return run
+
+
+LOG_TAIL = 60          # lines of each node's log in a failing test's report
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    item.started_at = time.monotonic()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failing system test's report ends with the logs of the nodes that ran during it."""
+    report = (yield).get_result()
+    if not report.failed:
+        return
+    from rosstack import Process
+    since = getattr(item, 'started_at', 0.0)
+    for proc in Process.started:
+        if proc.stopped_at is None or proc.stopped_at >= since:
+            lines = proc.output().splitlines()[-LOG_TAIL:]
+            report.sections.append((f'{proc.name} (pid {proc.pid}) log, last {len(lines)} lines',
+                                    '\n'.join(lines)))

@@ -14,6 +14,8 @@ import threading
 import time
 from pathlib import Path
 
+from contextlib import contextmanager
+
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -27,22 +29,36 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from picking_planner.kinematics import ArmModel
+from picking_planner.resources import config_dir, default_urdf
+from picking_planner.ros_common import LatestMessage
+
 BIN = Path(sys.executable).parent
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
               'wrist_3_joint']
 HOME = [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]
 DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat().tolist()
+ARM = ArmModel.from_urdf(default_urdf())
 
 
 class Process:
-    """One node as a child process, with its output kept for the failure message."""
+    """One node as a child process, with its output kept for the failure message.
 
-    def __init__(self, name, args, log_dir):
+    Every process started is listed in ``Process.started`` with the time it
+    stopped (None while it runs): conftest.py adds the logs of those that ran
+    during a failing test to its report.
+    """
+
+    started = []
+
+    def __init__(self, name, args, log_dir, tag=0):
         self.name = name
-        self.log = open(Path(log_dir) / f'{name}.log', 'w')
+        self.log = open(Path(log_dir) / f'{name}.{tag}.log', 'w')
         self.proc = subprocess.Popen([str(BIN / name), *args], stdout=self.log, stderr=subprocess.STDOUT,
                                      env=os.environ.copy())
+        self.stopped_at = None
+        Process.started.append(self)
 
     @property
     def pid(self):
@@ -50,6 +66,7 @@ class Process:
 
     def stop(self, sig=signal.SIGINT, timeout=10.0):
         """Signal by pid and wait; returns the exit code (None if it had to be killed)."""
+        killed = False
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
             try:
@@ -57,10 +74,11 @@ class Process:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-                self.log.close()
-                return None
+                killed = True
         self.log.close()
-        return self.proc.returncode
+        if self.stopped_at is None:
+            self.stopped_at = time.monotonic()
+        return None if killed else self.proc.returncode
 
     def output(self):
         if not self.log.closed:
@@ -69,29 +87,40 @@ class Process:
 
 
 class Stack:
-    """Simulator, controller and planner in one namespace."""
+    """Simulator, controller and planner in one namespace, each with its file from config/
+    (as users start them: real-time loop threads where the machine allows)."""
+
+    NODES = ('picking-sim', 'picking-controller', 'picking-planner')
 
     def __init__(self, ns, log_dir, sim_args=(), controller_args=(), planner_args=()):
         self.ns = ns
         self.log_dir = Path(log_dir) / ns.strip('/')
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        remap = ['-r', f'__ns:={ns}']
-        home = '[' + ','.join(str(v) for v in HOME + [0.09]) + ']'
-        self.sim = Process('picking-sim', ['--ros-args', *remap, '-p', f'initial_positions:={home}', *sim_args],
-                           self.log_dir)
-        self.controller = Process('picking-controller', ['--ros-args', *remap, *controller_args], self.log_dir)
-        self.planner = Process('picking-planner', ['--ros-args', *remap, *planner_args], self.log_dir)
+        self.args = {'picking-sim': list(sim_args), 'picking-controller': list(controller_args),
+                     'picking-planner': list(planner_args)}
+        self.starts = 0
+        self.sim, self.controller, self.planner = (self._start(name) for name in self.NODES)
 
-    def restart_sim(self, sim_args=()):
-        home = '[' + ','.join(str(v) for v in HOME + [0.09]) + ']'
-        self.sim = Process('picking-sim', ['--ros-args', '-r', f'__ns:={self.ns}', '-p',
-                                           f'initial_positions:={home}', *sim_args], self.log_dir)
+    def _start(self, name):
+        config = config_dir()
+        files = {'picking-sim': ['sim.yaml'], 'picking-controller': ['controller.yaml'],
+                 'picking-planner': ['planner.yaml']}[name]
+        args = ['--ros-args', '-r', f'__ns:={self.ns}']
+        for f in files:
+            args += ['--params-file', str(config / f)]
+        if name == 'picking-sim':
+            args += ['-p', 'initial_positions:=[' + ','.join(str(v) for v in HOME + [0.09]) + ']']
+        self.starts += 1
+        return Process(name, args + self.args[name], self.log_dir, tag=self.starts)
+
+    def restart_sim(self):
+        self.sim = self._start('picking-sim')
 
     def restart_controller(self):
-        self.controller = Process('picking-controller', ['--ros-args', '-r', f'__ns:={self.ns}'], self.log_dir)
+        self.controller = self._start('picking-controller')
 
     def restart_planner(self):
-        self.planner = Process('picking-planner', ['--ros-args', '-r', f'__ns:={self.ns}'], self.log_dir)
+        self.planner = self._start('picking-planner')
 
     def stop(self):
         return {p.name: p.stop() for p in (self.planner, self.controller, self.sim)}
@@ -113,6 +142,8 @@ class Client(Node):
         self.pub_path = self.create_publisher(PoseArray, 'goal_path', RELIABLE)
         self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', RELIABLE)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
+        self._commands_tap = LatestMessage(self, JointState, 'joint_commands')
+        self._goal = None                 # (publisher, message) of the last goal sent
         self._exec = SingleThreadedExecutor()
         self._exec.add_node(self)
         self._thread = threading.Thread(target=self._exec.spin, daemon=True)
@@ -150,23 +181,40 @@ class Client(Node):
         # Statuses are volatile: hear the planner and the controller before asking them anything.
         self.wait_for(lambda: self._planner_sub.get_publisher_count() > 0
                       and self._controller_sub.get_publisher_count() > 0, timeout, 'planner and controller statuses')
-        # The controller commands only once it has feedback: wait for a few of its commands.
-        seen = []
-        probe = self.create_subscription(JointState, 'joint_commands', lambda m: seen.append(1),
-                                         qos_profile_sensor_data)
-        try:
-            self.wait_for(lambda: len(seen) > 3, timeout, 'the controller to hold the arm')
-        finally:
-            self.destroy_subscription(probe)
+        # The controller commands only once it has feedback: wait for a command sent from now on
+        # (read on demand from a hidden subscription: no 1 kHz callbacks in this process).
+        since = time.time()
+
+        def commanding():
+            msg = self._commands_tap.take()
+            return msg is not None and msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 > since
+        self.wait_for(commanding, timeout, 'the controller to hold the arm')
 
     def mark(self):
         with self.lock:
             return {'states': len(self.states), 'commands': len(self.commands),
                     'planner': len(self.planner_status), 'controller': len(self.controller_status)}
 
-    def planner_answer(self, since, timeout=20.0):
-        return self.wait_for(lambda: self.planner_status[since['planner']:] and
-                             self.planner_status[since['planner']][1], timeout, 'planner_status')
+    def send(self, publisher, msg):
+        """Publish a goal; :meth:`planner_answer` sends it again while no answer comes."""
+        self._goal = (publisher, msg)
+        publisher.publish(msg)
+        return msg
+
+    def planner_answer(self, since, timeout=20.0, resend_every=2.0):
+        """The planner's first answer since ``since``. Like picking-goal, the last goal is sent
+        again (the planner answers a repeat without planning it twice) every ``resend_every`` s
+        without an answer: a goal sent as discovery completes can be lost."""
+        end = time.monotonic() + timeout
+        while True:
+            try:
+                return self.wait_for(lambda: self.planner_status[since['planner']:] and
+                                     self.planner_status[since['planner']][1],
+                                     min(resend_every, max(end - time.monotonic(), 0.0)), 'planner_status')
+            except AssertionError:
+                if time.monotonic() >= end or self._goal is None:
+                    raise AssertionError(f'timed out after {timeout} s waiting for planner_status') from None
+                self._goal[0].publish(self._goal[1])
 
     def controller_event(self, since, text, timeout=30.0):
         def find():
@@ -187,8 +235,7 @@ class Client(Node):
         msg.header.frame_id = 'base_link'
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.pose = make_pose(xyz, quat)
-        self.pub_pose.publish(msg)
-        return msg
+        return self.send(self.pub_pose, msg)
 
     def set_planner_parameter(self, name, value, timeout=10.0):
         """Set one of the planner's parameters through its parameter service (as picking-goal does)."""
@@ -200,7 +247,8 @@ class Client(Node):
 
     def close(self):
         self._exec.shutdown()
-        self._thread.join(timeout=2.0)        # the spin thread ends before the node goes
+        self._thread.join(timeout=10.0)       # the spin thread ends before the node goes
+        self._commands_tap.destroy()
         self.destroy_node()
 
 
@@ -214,3 +262,51 @@ def make_pose(xyz, quat=DOWN):
 def ensure_rclpy():
     if not rclpy.ok():
         rclpy.init()
+
+
+@contextmanager
+def running_stack(ns, log_dir, **args):
+    """A stack in ``ns`` and a client, ready to take goals; afterwards both are stopped,
+    and every node must have exited with 0."""
+    ensure_rclpy()
+    stack = Stack(ns, log_dir, **args)
+    client = Client(ns)
+    try:
+        client.wait_ready()
+        yield stack, client
+    finally:
+        codes = stack.stop()
+        client.close()
+    assert set(codes.values()) == {0}, codes
+
+
+def reach(client, send, timeout=40.0):
+    """Send a goal; wait for the planner's OK and the controller's 'goal reached'."""
+    mark = client.mark()
+    send()
+    answer = client.planner_answer(mark)
+    assert answer.level == DiagnosticStatus.OK, answer.message
+    client.controller_event(mark, 'goal reached', timeout)
+    return answer
+
+
+def tool_position(client):
+    return ARM.fk(client.last_positions())[:3, 3]
+
+
+def settles_at(client, target, tolerance=1e-3, timeout=5.0):
+    """Wait until the measured tool position is within ``tolerance`` m of ``target``.
+
+    "goal reached" means every joint within the goal tolerance (5 mrad) and at rest; the
+    servo's integral action then takes the tool the rest of the way."""
+    client.wait_for(lambda: np.linalg.norm(ARM.fk(np.array([
+        client.states[-1][1].position[list(client.states[-1][1].name).index(n)] for n in ARM_JOINTS]))[:3, 3]
+        - target) < tolerance, timeout, f'the tool within {tolerance * 1e3:g} mm of {list(target)}')
+
+
+def largest_step(client, since):
+    """Largest change of any arm joint between consecutive joint_states since ``since``."""
+    with client.lock:
+        msgs = [m for _, m in client.states[since['states']:]]
+    q = np.array([[m.position[list(m.name).index(n)] for n in ARM_JOINTS] for m in msgs])
+    return np.abs(np.diff(q, axis=0)).max() if len(q) > 1 else 0.0

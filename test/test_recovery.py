@@ -1,0 +1,63 @@
+"""System tests of failures and restarts: each runs a stack of its own, alone (no other arm
+running beside it), and every node must exit with 0 at the end."""
+
+import signal
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
+
+
+def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
+    with running_stack('/sys3', tmp_path) as (stack, client):
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))      # the whole loop works first
+        mark = client.mark()
+        assert stack.sim.stop() == 0
+        lost = client.controller_event(mark, 'feedback lost', 10.0)
+        assert lost.level == DiagnosticStatus.ERROR
+        refused = client.mark()
+        client.send_pose([0.6, 0.0, 0.4])
+        client.controller_event(refused, 'trajectory rejected', 10.0)
+        stack.restart_sim()
+        client.controller_event(mark, 'feedback restored', 20.0)
+        time.sleep(1.0)          # the new simulator's command subscription is still being discovered
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+
+
+def test_controller_and_planner_restarts_hold_the_arm_and_it_carries_on(tmp_path):
+    with running_stack('/sys5', tmp_path) as (stack, client):
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
+        at_rest = client.mark()
+        before = client.last_positions()
+        # The controller dies: the simulator holds where it was told last (and says so).
+        assert stack.controller.stop() == 0
+        client.wait_for(lambda: client.count_publishers('controller_status') == 0, 10.0, 'the old controller to go')
+        time.sleep(1.0)
+        stack.restart_controller()
+        client.wait_ready()                              # the new one commands: it holds the measured position
+        time.sleep(1.0)
+        # The planner dies and comes back: goals work again.
+        assert stack.planner.stop() == 0
+        client.wait_for(lambda: client.count_publishers('planner_status') == 0, 10.0, 'the old planner to go')
+        stack.restart_planner()
+        client.wait_ready()
+        assert largest_step(client, at_rest) < 1e-4                       # no jump at either restart
+        assert np.abs(client.last_positions() - before).max() < 1e-3
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+        assert 'holding' in stack.sim.output()
+
+
+def test_nodes_exit_cleanly_on_sigterm(tmp_path):
+    ensure_rclpy()
+    stack = Stack('/sys4', tmp_path)
+    client = Client('/sys4')
+    try:
+        client.wait_ready()
+    finally:
+        codes = {p.name: p.stop(signal.SIGTERM) for p in (stack.planner, stack.controller, stack.sim)}
+        client.close()
+    for proc in (stack.planner, stack.controller, stack.sim):
+        assert codes[proc.name] == 0, proc.output()
+        assert 'Traceback' not in proc.output()
