@@ -13,10 +13,9 @@ goal. Every parameter is validated when it is set.
 
 from __future__ import annotations
 
-import array
 import threading
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -30,6 +29,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from . import cdr
 from .kinematics import ArmModel, Unreachable, pose_matrix
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
@@ -65,6 +65,7 @@ def stamp_key(stamp):
 
 
 ZERO_KEY = '0.000000000'
+SENT_KEPT = 16       # plans remembered to tell whether the controller's reference follows them
 GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
 
 
@@ -91,8 +92,14 @@ class PlannerNode(Node):
         self.lock = threading.Lock()
         self.pending = []             # goals that came before the first joint_states
         self._planning_time = {}      # kind of goal -> s its last planning took
-        self._sent = None             # (trajectory, its start time) of the last plan sent
+        self._sent = deque(maxlen=SENT_KEPT)   # (trajectory, its start time) of the last plans sent
         self.create_timer(0.1, self._serve_pending)
+        # Trajectories and tool paths are written straight to CDR bytes (much faster than the
+        # message classes) where this middleware reads them back as the same messages.
+        self._cdr = cdr.check()
+        if not self._cdr:
+            self.get_logger().warning('this middleware does not read back our CDR bytes: trajectories are built as '
+                                      'messages (slower)')
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', BURST)
@@ -183,21 +190,25 @@ class PlannerNode(Node):
         start then, so planning and delivery time never make the arm jump and
         the plan's clock is the controller's. While the controller publishes a
         fresh reference, the start state is where that reference will be at the
-        start time: on the plan this planner sent last, when the reference is
-        following it (the exact state, even across the plan's end); else the
-        reference extrapolated from its stamp with its velocity and acceleration
-        (another client's trajectory). Without a reference, the measured state,
-        at rest. ``reference`` and ``measured`` (from :meth:`measured`) are
-        snapshots taken when the goal came.
+        start time. When the reference follows the plans this planner sent (each
+        one spliced onto the one before at its start time, so the reference at
+        its stamp lies on the plan active then, perhaps one that a newer plan,
+        not started yet, will take over from), the exact state of the plan
+        active at the start time, even across its end. Else the reference
+        extrapolated from its stamp with its velocity and acceleration (another
+        client's trajectory, a catch-up lead-in, a stalled controller), held
+        within the limits. Without a reference, the measured state, at rest.
+        ``reference`` and ``measured`` (from :meth:`measured`) are snapshots
+        taken when the goal came.
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
             q, qd, qdd, stamp = reference
-            if self._sent is not None and stamp > 0:
-                sent, t0 = self._sent
-                n = q.size
-                if np.abs(sent.state_at(stamp - t0)[0][:n] - q).max() < FOLLOWING:
-                    return tuple(x[:n].copy() for x in sent.state_at(t_start - t0)), 'reference', t_start
+            then = self._plan_active(stamp) if stamp > 0 else None
+            n = q.size
+            if then is not None and np.abs(then[0].state_at(stamp - then[1])[0][:n] - q).max() < FOLLOWING:
+                plan, t0 = self._plan_active(t_start) or then
+                return tuple(x[:n].copy() for x in plan.state_at(t_start - t0)), 'reference', t_start
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), \
                 'reference', t_start
@@ -205,6 +216,14 @@ class PlannerNode(Node):
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]
         return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start
+
+    def _plan_active(self, t):
+        """``(trajectory, start time)`` of the sent plan that runs at time ``t`` (the newest
+        one started by then), or None."""
+        for plan in reversed(self._sent):
+            if plan[1] <= t:
+                return plan
+        return None
 
     # -- goals ---------------------------------------------------------------------------
     def _check_frame(self, header):
@@ -346,8 +365,8 @@ class PlannerNode(Node):
             self._refuse(kind, key, f'the plan {problem} (from a {source} start: the arm\'s motion '
                                     'cannot be carried on within the limits); try again')
             return
-        self._publish(plan, t_start, points)
-        self._sent = (plan.trajectory, t_start)
+        self._publish_trajectory(list(plan.joint_names or self.names), t_start, points)
+        self._sent.append((plan.trajectory, t_start))
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
         self._answer(status(
@@ -355,6 +374,7 @@ class PlannerNode(Node):
             goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
             segments=segments, planning_ms=planning_ms, **getattr(plan, 'extra', {})))
+        self._publish_tool_path(points[1])
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
     def _controller_listens(self, wait=5.0):
@@ -380,36 +400,36 @@ class PlannerNode(Node):
                 return f'breaks the {what} limit of {names[j]} ({arr[i, j]:.4g}) at t = {t[i]:.3f} s'
         return ''
 
-    def _publish(self, plan, t_start, points):
+    def _publish_trajectory(self, names, t_start, points):
+        """The plan on ``joint_trajectory``, stamped with its start time."""
         t, q, qd, qdd = points
+        if self._cdr:
+            self.pub_traj.publish(cdr.joint_trajectory(round(t_start * 1e9), '', names, t, q, qd, qdd))
+            return
         msg = JointTrajectory()
-        msg.joint_names = list(plan.joint_names or self.names)
-        msg.header.stamp.sec = int(t_start)
-        msg.header.stamp.nanosec = int((t_start - int(t_start)) * 1e9)
-        # Typed arrays and in-place durations: several times faster to build and to
-        # serialise than lists and new Duration objects (hundreds of points per plan).
-        ns = np.round(t * 1e9).astype(np.int64)
-        secs, nanos = (ns // 1_000_000_000).tolist(), (ns % 1_000_000_000).tolist()
-        q, qd, qdd = (np.ascontiguousarray(x) for x in (q, qd, qdd))
-        points = []
+        msg.joint_names = names
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(t_start * 1e9), 1_000_000_000)
         for i in range(len(t)):
-            p = JointTrajectoryPoint()
-            p.positions = array.array('d', q[i].tobytes())
-            p.velocities = array.array('d', qd[i].tobytes())
-            p.accelerations = array.array('d', qdd[i].tobytes())
-            p.time_from_start.sec, p.time_from_start.nanosec = secs[i], nanos[i]
-            points.append(p)
-        msg.points = points
+            p = JointTrajectoryPoint(positions=q[i].tolist(), velocities=qd[i].tolist(),
+                                     accelerations=qdd[i].tolist())
+            p.time_from_start.sec, p.time_from_start.nanosec = divmod(round(t[i] * 1e9), 1_000_000_000)
+            msg.points.append(p)
         self.pub_traj.publish(msg)
+
+    def _publish_tool_path(self, q):
+        """The tool poses of the plan (every other point) on ``planned_path``, for RViz or Foxglove."""
         arm_q = q[:, :self.arm.dof]
         tool = self.arm.fk(arm_q[::2] if len(arm_q) > 2 else arm_q)
+        quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
+        stamp_ns = self.get_clock().now().nanoseconds
+        if self._cdr:
+            self.pub_path.publish(cdr.path(stamp_ns, self.arm.base_frame, tool[:, :3, 3], quats))
+            return
         path = Path()
         path.header.frame_id = self.arm.base_frame
-        path.header.stamp = self.get_clock().now().to_msg()
-        quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
+        path.header.stamp.sec, path.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
         for T, qt in zip(tool, quats):
-            ps = PoseStamped()
-            ps.header = path.header
+            ps = PoseStamped(header=path.header)
             ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, T[:3, 3])
             (ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z,
              ps.pose.orientation.w) = map(float, qt)
