@@ -67,6 +67,7 @@ def stamp_key(stamp):
 ZERO_KEY = '0.000000000'
 SENT_KEPT = 16       # plans remembered to tell whether the controller's reference follows them
 GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
+REPEAT_WINDOW = 30.0  # s after a goal in which the same goal again is a resend, not a new goal
 
 
 class PlannerNode(Node):
@@ -106,7 +107,7 @@ class PlannerNode(Node):
         self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
-        self._goals = OrderedDict()   # goal key -> [its bytes, its answer]: a goal sent again is answered again
+        self._goals = OrderedDict()   # goal key -> [its bytes, its answer, when it came]: a resend is answered again
         self._superseded = 0          # goals answered as superseded since the last log line
         self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
@@ -248,19 +249,22 @@ class PlannerNode(Node):
 
         A sender that hears no answer sends its goal again: a message published just as
         discovery completes can be lost (the sender already sees this subscription, this
-        node does not yet see the sender). A zero stamp gives a goal no identity.
+        node does not yet see the sender). A zero stamp gives a goal no identity, and
+        the same goal more than REPEAT_WINDOW s after the first is a new one (a
+        client that stamps every goal alike).
         """
         key = stamp_key(msg.header.stamp)
         if key == ZERO_KEY:
             return False
         data = serialize_message(msg)
         seen = self._goals.get(key)
-        if seen is not None and seen[0] == data:
+        if seen is not None and seen[0] == data and self._now() - seen[2] < REPEAT_WINDOW:
             if seen[1] is not None:           # (None: it waits for the first joint_states)
                 self.pub_status.publish(seen[1])
             self.get_logger().info(f'goal {key} came again: its answer was sent again, it is not planned twice')
             return True
-        self._goals[key] = [data, None]
+        self._goals[key] = [data, None, self._now()]
+        self._goals.move_to_end(key)
         while len(self._goals) > GOALS_KEPT:
             self._goals.popitem(last=False)
         return False
