@@ -25,6 +25,8 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from harness import fmt_time  # noqa: E402
 from rosstack import Client, Stack, ensure_rclpy  # noqa: E402
 
+from picking_planner.ros_common import LatestMessage  # noqa: E402
+
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # Two reachable tool positions near the home pose, visited in turn.
 POSES = ([0.55, 0.10, 0.45], [0.50, -0.10, 0.40])
@@ -44,23 +46,31 @@ class Watcher:
     def __init__(self, ns):
         self.client = Client(ns)
         self.arrivals = []
-        self.loop = None
-        self.loop_time = 0.0
         # Raw: the arrival time, without this client's own (slow, Python) deserialisation in it.
         self.client.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE,
                                         raw=True)
-        self.client.create_subscription(DiagnosticStatus, 'controller_loop', self._on_loop, RELIABLE)
+        # The controller's loop figures, taken on demand (no executor callback to starve when
+        # several stacks load the machine: an N >= 2 run used to lose them).
+        self.loop_tap = LatestMessage(self.client, DiagnosticStatus, 'controller_loop')
         self.event = threading.Event()
 
     def _on_trajectory(self, msg):
         self.arrivals.append(time.monotonic())
         self.event.set()
 
-    def _on_loop(self, msg):
-        self.loop = {kv.key: float(kv.value) for kv in msg.values}
-        self.loop_time = time.monotonic()
+    def loop_report_after(self, previous, timeout=10.0):
+        """The figures of the first controller_loop report newer than the message ``previous``
+        (None if none comes within ``timeout`` s)."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            msg = self.loop_tap.take()
+            if msg is not None and msg is not previous:
+                return {kv.key: float(kv.value) for kv in msg.values}
+            time.sleep(0.1)
+        return None
 
     def close(self):
+        self.loop_tap.destroy()
         self.client.close()
 
 
@@ -130,13 +140,10 @@ def run_stacks(n, rate, seconds, goal_every=2.0):
             wall = time.monotonic() - t0
             cpu = [100.0 * (cpu_seconds(s.controller.pid) - c) / wall for s, c in zip(stacks, cpu0)]
             # One more loop report after the window from every controller.
-            end = time.monotonic()
-            deadline = end + 10.0
-            while time.monotonic() < deadline and any(w.loop_time < end for w in watchers):
-                time.sleep(0.1)
+            last = [w.loop_tap.take() for w in watchers]
             out = []
-            for w, c in zip(watchers, cpu):
-                figures = dict(w.loop or {})
+            for w, c, previous in zip(watchers, cpu, last):
+                figures = w.loop_report_after(previous) or {}
                 figures['cpu_window_percent'] = c
                 out.append(figures)
         finally:
