@@ -146,8 +146,15 @@ class Client(Node):
         self._goal = None                 # (publisher, message) of the last goal sent
         self._exec = SingleThreadedExecutor()
         self._exec.add_node(self)
-        self._thread = threading.Thread(target=self._exec.spin, daemon=True)
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
+
+    def _spin(self):
+        # Our own loop, ended by close() before the executor shuts down: shutting it down while
+        # it spins races with a callback in flight ("cannot use Destroyable").
+        while not self._closing.is_set():
+            self._exec.spin_once(timeout_sec=0.05)
 
     def watch_commands(self):
         """Record joint_commands too (1 kHz: only the tests that need it pay for it)."""
@@ -246,8 +253,9 @@ class Client(Node):
         assert future.result().results[0].successful, future.result().results[0].reason
 
     def close(self):
+        self._closing.set()
+        self._thread.join(timeout=10.0)       # the spin thread ends before the executor and node go
         self._exec.shutdown()
-        self._thread.join(timeout=10.0)       # the spin thread ends before the node goes
         self._commands_tap.destroy()
         self.destroy_node()
 
