@@ -25,8 +25,8 @@ from trajectory_msgs.msg import JointTrajectory
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, make_realtime, reorder,
-                                        run_node, status)
+from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, make_realtime,
+                                        newest_waiting, reorder, run_node, status)
 
 from .core import ControllerCore, Event, Tolerances
 from .timing import LoopStats
@@ -119,12 +119,9 @@ class ControllerNode(Node):
         the old trajectory until then. Only if the state changed meanwhile (or
         preparing took too long) twice in a row is the work done under the lock.
         """
-        while True:                  # only the newest waiting trajectory counts: a burst never queues up
-            got = self.sub_trajectory.handle.take_message(JointTrajectory, False)
-            if got is None:
-                break
-            self._report([Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')])
-            msg = got[0]
+        # Only the newest waiting trajectory counts: a burst never queues up.
+        msg = newest_waiting(self.sub_trajectory, msg, lambda old: self._report(
+            [Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')]))
         pts = msg.points
         args = (msg.joint_names, [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
                 [p.positions for p in pts], [p.velocities for p in pts], [p.accelerations for p in pts],

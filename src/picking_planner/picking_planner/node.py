@@ -34,7 +34,8 @@ from .kinematics import ArmModel, Unreachable, pose_matrix
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
-from .ros_common import ERROR, OK, WARN, LatestMessage, reorder, run_node, status, status_values
+from .ros_common import (ERROR, OK, WARN, LatestMessage, newest_waiting, reorder, run_node, status,
+                         status_values)
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -234,14 +235,8 @@ class PlannerNode(Node):
                              '(no TF here: give poses in the base frame, or leave frame_id empty)')
 
     def _newest(self, sub, msg, kind):
-        """The newest goal waiting on ``sub`` (``msg`` or a later one); every older one is
-        answered at once as superseded, without planning it (a burst never builds a backlog)."""
-        while True:
-            got = sub.handle.take_message(sub.msg_type, False)
-            if got is None:
-                return msg
-            self._supersede(kind, msg.header)
-            msg = got[0]
+        """The newest goal waiting on ``sub``; every older one is answered at once as superseded."""
+        return newest_waiting(sub, msg, lambda old: self._supersede(kind, old.header))
 
     def _repeated(self, msg):
         """True when ``msg`` is a goal already taken (same stamp, same content): its answer

@@ -147,6 +147,19 @@ def _order(msg_names, names, what):
     return np.array([index[n] for n in names], dtype=np.intp)
 
 
+def newest_waiting(sub, msg, on_older):
+    """The newest message waiting on subscription ``sub``: ``msg`` (just delivered by the
+    executor) or a later one taken at once; ``on_older`` is called with each older one.
+
+    A burst then never builds a backlog: the newest is handled, every older one is
+    answered (as superseded) without being worked on.
+    """
+    while (got := sub.handle.take_message(sub.msg_type, False)) is not None:
+        on_older(msg)
+        msg = got[0]
+    return msg
+
+
 class LatestMessage:
     """The newest message of a fast topic, taken on demand instead of by a callback.
 
