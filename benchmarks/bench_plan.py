@@ -70,7 +70,8 @@ def jerk_limited_cycle():
     arm = _arm()
     start = _start(PickSettings())
     optimal = PickCycle(
-        Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal', limit_jerk=True)),
+        Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal', limit_jerk=True,
+                                     cartesian_profile='optimal')),
         PickSettings(approach_method='optimal', transfer_method='optimal').validate(arm)).plan(start, APPLE)
     # The paper's way (Sec. 3.2 D): every section a fixed 2 s, cubic with parabolic blends (LSPB), lines
     # and dwells as in our cycle.

@@ -39,6 +39,11 @@ JERK_UNBOUNDED = ('cubic', 'lspb', 'via_lspb')
 #: Jerk limit assumed for joints that have none, per second times their acceleration limit.
 DEFAULT_JERK_PER_ACCEL = 10.0
 
+#: Via-point speeds tried by the jerk-limited via timing, times the neighbouring chords' mean speed.
+VIA_SPEEDS = (1.0, 1.5, 2.0)
+#: A Cartesian path found too fast is stretched by its limit ratio times this: its joint speeds scale
+#: with 1/T, but not every part of its sampled peaks does (IK noise near a singular wrist).
+STRETCH_MARGIN = 1.05
 #: Plans use at most this fraction of the scaled limits, so that the controller's spline
 #: through the 10 ms points (which can overshoot the plan by a hair) never crosses a limit.
 PLAN_MARGIN = 0.98
@@ -67,7 +72,10 @@ class PlannerSettings:
         the joints need more time).
     cartesian_profile : str
         Time profile of the progress along lines and arcs: ``quintic`` (smooth
-        ends), ``lspb`` or ``cubic``.
+        ends), ``lspb``, ``cubic``, or ``optimal`` (Ruckig's time-optimal,
+        jerk-limited progress within ``cartesian_speed``, ``cartesian_accel`` and
+        10/s times that as jerk: about 10 % shorter lines than ``quintic`` when
+        ``limit_jerk`` binds).
     max_joint_step : float
         Jump threshold of Cartesian paths, rad per sample.
     limit_jerk : bool
@@ -335,25 +343,40 @@ class Planner:
         """Time a curve: start from the Cartesian guess, stretch until the joints keep their limits."""
         s = self.settings
         length = curve.length
-        guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
+        limits = None
+        if s.cartesian_profile == 'optimal':
+            # The tool's speed and acceleration guesses, and a jerk of DEFAULT_JERK_PER_ACCEL times the
+            # acceleration, as limits of the progress (1/s^k): the time-optimal shape within them.
+            limits = (np.array([s.cartesian_speed, s.cartesian_accel, DEFAULT_JERK_PER_ACCEL * s.cartesian_accel])
+                      / max(length, 1e-9))
+            guess = max(geometry.optimal_progress(limits).duration, 0.2)
+        else:
+            guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
         T = s.duration or guess
         for _ in range(6):
-            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations, keys=keys)
+            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations, keys=keys,
+                                                limits=limits)
             jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
                                     check_limits=False)
             over = max(float(np.max(jp.peak_velocity / self._vmax)),
                        float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
+            t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
             if s.limit_jerk:
-                grid = np.linspace(0.0, T, max(50, int(T / 0.0025)))
-                over = max(over, self._jerk_ratio(jp.trajectory, grid) ** (1.0 / 3.0))
+                over = max(over, self._jerk_ratio(jp.trajectory, t) ** (1.0 / 3.0))
             if over <= 1.0:
-                t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
-                check_joint_limits(self.arm, t, *jp.trajectory.sample(t))
-                return jp.trajectory, path
+                try:
+                    check_joint_limits(self.arm, t, *jp.trajectory.sample(t))
+                    return jp.trajectory, path
+                except Unreachable:
+                    if s.duration:
+                        raise
+                    over = 1.0          # between the samples a hair beyond a limit: stretch a little
             if s.duration:
                 raise Unreachable(f'the path needs {over:.2f} times the allowed joint speed in the '
                                   f'fixed duration {s.duration} s')
-            T *= over * 1.05
+            # The curve's geometry is fixed, so its joint speeds scale with 1/T, accelerations
+            # with 1/T^2, jerks with 1/T^3: the ratio says about how much longer it must take.
+            T *= over * STRETCH_MARGIN
         raise Unreachable('could not time the Cartesian path within the joint limits')
 
     def line(self, q0, T_start, T_goal):
@@ -456,20 +479,33 @@ class Planner:
     def _optimal_via(self, qs):
         """Jerk-limited, time-optimal segments through via points, passed at speed.
 
-        A joint passes a via point at the mean of its neighbouring chords' speeds
-        (chords timed rest to rest) where both go the same way, and stops where it
-        turns back; each segment is then Ruckig's fastest move between those states.
+        A joint passes a via point at a multiple of the mean of its neighbouring
+        chords' speeds (chords timed rest to rest) where both go the same way, and
+        stops where it turns back; each segment is then Ruckig's fastest move
+        between those states. The multiple is the fastest of VIA_SPEEDS (the mean
+        itself is often too slow: a transfer's via point cost 0.1 s over the direct
+        move at 1x, nothing at 2x).
         """
         if len(qs) == 2:
             return self.joint_move(qs[0], qs[1], 'optimal')
         chords = np.array([self.shortest_duration(a, b, 'lspb') for a, b in zip(qs[:-1], qs[1:])])
         slopes = np.diff(qs, axis=0) / chords[:, None]
-        v = np.zeros_like(qs)
         onward = np.sign(slopes[:-1]) == np.sign(slopes[1:])
-        v[1:-1] = np.where(onward, 0.5 * (slopes[:-1] + slopes[1:]), 0.0)
-        v = np.clip(v, -self._vmax, self._vmax)
-        parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], None,
-                                         v[i + 1], None) for i in range(len(qs) - 1)]
-        traj = trajectory.concatenate(parts)
+        mean = np.where(onward, 0.5 * (slopes[:-1] + slopes[1:]), 0.0)
+        best, error = None, None
+        for scale in VIA_SPEEDS:
+            v = np.zeros_like(qs)
+            v[1:-1] = np.clip(scale * mean, -self._vmax, self._vmax)
+            try:
+                parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], None,
+                                                 v[i + 1], None) for i in range(len(qs) - 1)]
+            except ValueError as exc:
+                error = exc
+                continue
+            if best is None or sum(p.duration for p in parts) < sum(p.duration for p in best):
+                best = parts
+        if best is None:
+            raise error
+        traj = trajectory.concatenate(best)
         self._check(traj, 'optimal via points')
         return traj

@@ -139,7 +139,7 @@ def test_arc_through_three_points(p1, p2, p3):
         refused_or_finite(arc.points, 5)
 
 
-@given(arrays(1), arrays(1), WILD, st.sampled_from(['cubic', 'quintic', 'lspb', 'nonsense']))
+@given(arrays(1), arrays(1), WILD, st.sampled_from(['cubic', 'quintic', 'lspb', 'optimal', 'nonsense']))
 def test_line_and_timed_path(a, b, T, profile):
     line = refused_or_finite(geometry.Line, a, b)
     if line is not None:

@@ -103,3 +103,29 @@ def test_cartesian_path_refuses_bad_profile_and_quaternions():
         geometry.CartesianPath.timed(line, 1.0, 'septic')
     with pytest.raises(ValueError, match='non-zero'):
         geometry.CartesianPath.timed(line, 1.0, orientations=[[0, 0, 0, 0]])
+
+
+def test_optimal_progress_is_bang_bang_jerk_and_faster_than_a_quintic_for_the_same_peak_jerk():
+    T = 1.0
+    fast = geometry.progress_profile(T, 'optimal')
+    t = np.linspace(0.0, T, 4001)
+    jerk = fast.jerk(t)[:, 0]
+    # +J, -J, +J with switches at T/4 and 3T/4 (jerk-bound, rest to rest): h = J T^3 / 32.
+    assert np.abs(jerk[[100, 2000, 3900]] - np.array([32.0, -32.0, 32.0])).max() < 1e-6
+    q, qd, _ = fast.sample(np.array([0.0, T]))
+    assert q[:, 0] == pytest.approx([0.0, 1.0]) and qd[:, 0] == pytest.approx([0.0, 0.0], abs=1e-12)
+    # For the same peak jerk a quintic needs (60/32)^(1/3) = 1.23 times as long.
+    quintic = geometry.progress_profile(T, 'quintic')
+    assert np.abs(quintic.jerk(t)).max() == pytest.approx(60.0, rel=1e-3)
+
+
+def test_optimal_progress_within_given_limits_keeps_them_and_reaches_one():
+    limits = (2.0, 10.0, 100.0)
+    shape = geometry.optimal_progress(limits)
+    t = np.linspace(0.0, shape.duration, 2001)
+    q, qd, qdd = shape.sample(t)
+    assert q[-1, 0] == pytest.approx(1.0) and np.abs(qd).max() <= 2.0 + 1e-9
+    assert np.abs(qdd).max() <= 10.0 + 1e-9 and np.abs(shape.jerk(t)).max() <= 100.0 + 1e-6
+    slower = geometry.progress_profile(2.0 * shape.duration, 'optimal', limits=limits)
+    assert slower.duration == pytest.approx(2.0 * shape.duration)
+    assert slower.sample(t * 2.0)[0] == pytest.approx(q)                # the same shape, stretched

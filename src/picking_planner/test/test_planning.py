@@ -165,3 +165,17 @@ def test_an_extrapolated_start_is_held_within_the_limits_and_every_method_plans_
     for method in ('quintic', 'optimal', 'lspb'):
         plan = planner.plan_pose((q1, qd1, qdd1), goal, method=method)
         _within_limits(arm, plan)
+
+
+def test_a_jerk_limited_line_with_the_optimal_progress_is_faster_and_keeps_every_limit(arm):
+    start = (HOME, Z, Z)
+    goal = pose_matrix([0.55, 0.05, 0.35], DOWN)
+    plans = {}
+    for profile in ('quintic', 'optimal'):
+        p = Planner(arm, PlannerSettings(speed_scale=1.0, method='line', path_method='optimal', limit_jerk=True,
+                                         cartesian_profile=profile))
+        plans[profile] = p.plan_pose(start, goal)
+        _within_limits(arm, plans[profile])
+        t = np.linspace(0.0, plans[profile].duration, 4000)
+        assert np.all(np.abs(plans[profile].trajectory.jerk(t)[:, :arm.dof]) <= p._jmax / PLAN_MARGIN * (1 + 1e-6))
+    assert plans['optimal'].duration < 0.95 * plans['quintic'].duration

@@ -191,3 +191,18 @@ def test_state_at_is_sample_at_one_time(path, fractions):
     for t in times:
         for fast, full in zip(traj.state_at(t), traj.sample(t)):
             assert fast == pytest.approx(full[0], rel=1e-12, abs=1e-9)
+
+
+def test_a_stretched_trajectory_takes_longer_on_the_same_path_with_scaled_derivatives():
+    from picking_planner.trajectory import quintic
+    traj = quintic([0.0, 1.0], [1.0, -2.0], 2.0).shifted(0.5)
+    slow = traj.stretched(1.5)
+    assert slow.start_time == 0.5 and slow.duration == pytest.approx(3.0)
+    t = np.linspace(0.0, 2.0, 41)
+    q, qd, qdd = traj.sample(0.5 + t)
+    q2, qd2, qdd2 = slow.sample(0.5 + 1.5 * t)
+    assert q2 == pytest.approx(q) and qd2 == pytest.approx(qd / 1.5) and qdd2 == pytest.approx(qdd / 1.5**2)
+    assert slow.jerk(0.5 + 1.5 * t) == pytest.approx(traj.jerk(0.5 + t) / 1.5**3)
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        with pytest.raises(ValueError):
+            traj.stretched(bad)

@@ -6,7 +6,7 @@
 """
 
 from .arc import Arc
-from .cartesian import PROFILES, CartesianPath, progress_profile
+from .cartesian import PROFILES, CartesianPath, optimal_progress, progress_profile
 from .line import Line
 
-__all__ = ['Arc', 'Line', 'CartesianPath', 'progress_profile', 'PROFILES']
+__all__ = ['Arc', 'Line', 'CartesianPath', 'progress_profile', 'optimal_progress', 'PROFILES']

@@ -14,22 +14,39 @@ from scipy.spatial.transform import Rotation, Slerp
 from .. import trajectory
 from ..trajectory._checks import as_duration
 
-PROFILES = ('cubic', 'quintic', 'lspb')
+PROFILES = ('cubic', 'quintic', 'lspb', 'optimal')
+#: Progress limits (velocity, acceleration, jerk, in 1/s^k) whose time-optimal profile is the
+#: shape of ``optimal`` when no limits are given: jerk-bound, bang-bang jerk (the fastest shape
+#: for a given peak jerk, 0.81 of a quintic's time).
+JERK_BOUND = (1e3, 1e3, 1.0)
 
 
-def progress_profile(duration, profile='quintic', accel=None):
+def optimal_progress(limits=JERK_BOUND):
+    """The fastest progress from rest at 0 to rest at 1 within ``limits`` = (velocity,
+    acceleration, jerk) of the progress (Ruckig: at most seven constant-jerk phases)."""
+    v, a, j = (float(x) for x in limits)
+    return trajectory.time_optimal([0.0], [1.0], v, a, j)
+
+
+def progress_profile(duration, profile='quintic', accel=None, limits=None):
     """A one-joint profile from 0 to 1 in ``duration`` s.
 
     Parameters
     ----------
     duration : float
         s.
-    profile : {'cubic', 'quintic', 'lspb'}
+    profile : {'cubic', 'quintic', 'lspb', 'optimal'}
     accel : float, optional
         For LSPB, the blend acceleration of the progress, 1/s^2; default 1.5
         times the minimum of Eq. 20 (cruise over a third of the move).
+    limits : (float, float, float), optional
+        For ``optimal``, the progress limits whose time-optimal, jerk-limited
+        profile gives the shape, stretched to ``duration`` (default: jerk-bound).
     """
     duration = as_duration(duration)
+    if profile == 'optimal':
+        shape = optimal_progress(JERK_BOUND if limits is None else limits)
+        return shape.stretched(duration / shape.duration)
     if profile == 'cubic':
         return trajectory.cubic(0.0, 1.0, duration)
     if profile == 'quintic':
@@ -98,9 +115,9 @@ class CartesianPath:
                 self._slerp = Slerp(keys, rots)
 
     @classmethod
-    def timed(cls, curve, duration, profile='quintic', accel=None, orientations=None, keys=None):
+    def timed(cls, curve, duration, profile='quintic', accel=None, orientations=None, keys=None, limits=None):
         """Traverse ``curve`` in ``duration`` s with the named profile."""
-        return cls(curve, progress_profile(duration, profile, accel), orientations, keys)
+        return cls(curve, progress_profile(duration, profile, accel, limits), orientations, keys)
 
     @property
     def duration(self) -> float:

@@ -234,6 +234,16 @@ class PiecewisePolynomial:
         """The same trajectory starting ``dt`` seconds later."""
         return PiecewisePolynomial(self._breaks + float(dt), self._coeffs)
 
+    def stretched(self, factor: float) -> 'PiecewisePolynomial':
+        """The same path taking ``factor`` times as long (from the same start time): velocities
+        divided by ``factor``, accelerations by its square, jerks by its cube."""
+        factor = float(factor)
+        if not (np.isfinite(factor) and factor > 0):
+            raise ValueError(f'the stretch factor must be finite and > 0, got {factor}')
+        t0 = self._breaks[0]
+        powers = factor ** -np.arange(_N_COEFFS, dtype=float)
+        return PiecewisePolynomial(t0 + (self._breaks - t0) * factor, self._coeffs * powers[None, :, None])
+
     def then(self, other: 'PiecewisePolynomial') -> 'PiecewisePolynomial':
         """This trajectory followed by ``other`` (see :func:`concatenate`)."""
         return concatenate([self, other])
