@@ -208,6 +208,11 @@ class Client(Node):
         publisher.publish(msg)
         return msg
 
+    @property
+    def last_goal(self):
+        """The last goal message sent with :meth:`send`."""
+        return self._goal[1]
+
     def planner_answer(self, since, timeout=20.0, resend_every=2.0):
         """The planner's first answer since ``since``. Like picking-goal, the last goal is sent
         again (the planner answers a repeat without planning it twice) every ``resend_every`` s
