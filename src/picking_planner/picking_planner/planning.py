@@ -192,7 +192,18 @@ def feasible_start(arm, q, qd, qdd):
     outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | \
         ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
     qdd1 = np.where(outward, 0.0, np.clip(qdd, -amax, amax))
+    # Speeding up, a joint gains a^2 / 2j more speed before the jerk limit lets its
+    # acceleration reach zero: no more than it has left below its speed limit.
+    room = np.sqrt(2.0 * _full_jerk(arm) * np.maximum(vmax - np.abs(qd1), 0.0))
+    speeding_up = qdd1 * qd1 > 0
+    qdd1 = np.where(speeding_up, np.clip(qdd1, -room, room), qdd1)
     return q1, qd1, qdd1
+
+
+def _full_jerk(arm):
+    """The arm's jerk limits, DEFAULT_JERK_PER_ACCEL times the acceleration limit where none is given."""
+    a = np.where(np.isfinite(arm.max_acceleration), arm.max_acceleration, 2.0)
+    return np.where(np.isfinite(arm.max_jerk), arm.max_jerk, DEFAULT_JERK_PER_ACCEL * a)
 
 
 class Planner:
@@ -218,9 +229,7 @@ class Planner:
 
     @property
     def _jmax(self):
-        a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
-        j = np.where(np.isfinite(self.arm.max_jerk), self.arm.max_jerk, DEFAULT_JERK_PER_ACCEL * a)
-        return j * (self.settings.speed_scale ** 3) * PLAN_MARGIN
+        return _full_jerk(self.arm) * (self.settings.speed_scale ** 3) * PLAN_MARGIN
 
     def shortest_duration(self, q0, qf, method):
         """The shortest time in which every joint makes its move within the scaled limits, s."""
@@ -260,10 +269,21 @@ class Planner:
         q, qd, qdd = (np.asarray(x, float) for x in start)
         if np.abs(qd).max() < 1e-4 and np.abs(qdd).max() < 1e-3:
             return None, q
-        # The shortest of a few stops that keeps the limits (a start already decelerating hard
-        # needs more time than its speed alone says); none does: the first, the shortest.
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, np.inf)
         amax = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, np.inf)
+        # Ruckig's time-optimal, jerk-limited stop keeps the velocity and acceleration limits
+        # whenever any stop can.
+        try:
+            stop = trajectory.time_optimal_stop(q, qd, qdd, np.minimum(vmax, 1e3), np.minimum(amax, 1e4),
+                                                np.minimum(_full_jerk(self.arm), 1e5))
+            p, v, a = stop.sample(np.linspace(0.0, stop.duration, 201))
+            if np.all(np.abs(v) <= vmax + 1e-9) and np.all(np.abs(a) <= amax + 1e-9) and \
+                    self.arm.within_limits(p).all():
+                return stop, stop.end_state()[0]
+        except ValueError:
+            pass
+        # Else the shortest of a few quintic stops that keeps the limits (a start already
+        # decelerating hard needs more time than its speed alone says); none does: the first.
         first = None
         for least in (0.05, 0.1, 0.2, 0.4):
             stop = trajectory.brake(q, qd, qdd, self.arm.max_acceleration, min_duration=least)

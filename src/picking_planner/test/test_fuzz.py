@@ -98,6 +98,11 @@ def test_time_optimal(q0, qf, v, a, j, v0, min_duration):
     refused_or_finite(trajectory.time_optimal, q0, qf, v, a, j, v0, min_duration=min_duration)
 
 
+@given(vectors(), vectors(), vectors(), vectors(), vectors(), vectors())
+def test_time_optimal_stop(q0, v0, a0, v, a, j):
+    refused_or_finite(trajectory.time_optimal_stop, q0, v0, a0, v, a, j)
+
+
 @given(vectors(), vectors(), vectors(), vectors(), WILD)
 def test_brake_and_hold(q, qd, qdd, amax, T):
     refused_or_finite(trajectory.brake, q, qd, qdd, amax)

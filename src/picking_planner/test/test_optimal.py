@@ -107,3 +107,18 @@ def test_limit_jerk_refuses_profiles_with_acceleration_steps(arm):
     with pytest.raises(Unreachable, match='jerk limit broken'):
         Planner(arm, PlannerSettings(path_method='quintic_via', limit_jerk=True, duration=0.5)).joint_move(
             HOME, HOME + 0.2, 'quintic')
+
+
+def test_the_time_optimal_stop_comes_to_rest_within_the_limits():
+    from picking_planner.trajectory import time_optimal_stop
+    vmax, amax, jmax = np.array([2.0, 3.0]), np.array([6.0, 12.0]), np.array([60.0, 120.0])
+    stop = time_optimal_stop([0.5, -1.0], [1.9, -2.5], [3.0, 10.0], vmax, amax, jmax)
+    t = np.linspace(0.0, stop.duration, 2001)
+    q, qd, qdd = stop.sample(t)
+    assert np.all(np.abs(qd) <= vmax + 1e-9) and np.all(np.abs(qdd) <= amax + 1e-9)
+    assert np.all(np.abs(stop.jerk(t)) <= jmax + 1e-6)
+    end_q, end_v, end_a = stop.end_state()
+    assert np.abs(end_v).max() < 1e-9 and np.abs(end_a).max() < 1e-9
+    assert end_q[0] > 0.5 and end_q[1] < -1.0                     # it went on the way it was going
+    with pytest.raises(ValueError):
+        time_optimal_stop([0.0], [np.nan], [0.0], 1.0, 1.0, 1.0)

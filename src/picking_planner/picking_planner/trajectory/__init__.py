@@ -12,11 +12,11 @@ extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
 from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb
 from .piecewise import PiecewisePolynomial, concatenate, hold, stack
 from .polynomial import brake, cubic, hermite_coeffs, quintic
-from .optimal import time_optimal
+from .optimal import time_optimal, time_optimal_stop
 from .via import quintic_via
 
 __all__ = [
     'PiecewisePolynomial', 'Lspb', 'ViaLspb',
     'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'quintic_via',
-    'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake', 'time_optimal',
+    'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake', 'time_optimal', 'time_optimal_stop',
 ]

@@ -79,6 +79,38 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
     return _to_piecewise(traj, n)
 
 
+def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
+    """The fastest jerk-limited stop from ``(q0, v0, a0)``: every joint at rest as soon as
+    its limits allow (each on its own; the others then hold).
+
+    A start beyond a limit gets Ruckig's braking pre-phase. Raises ValueError for
+    non-finite input or non-positive limits.
+    """
+    from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
+
+    q0 = as_joint_vector(q0, 'q0')
+    n = q0.size
+    v0, a0 = as_joint_vector(v0, 'v0', n), as_joint_vector(a0, 'a0', n)
+    inp = InputParameter(n)
+    inp.control_interface = ControlInterface.Velocity
+    inp.synchronization = Synchronization.No
+    inp.current_position, inp.current_velocity, inp.current_acceleration = q0.tolist(), v0.tolist(), a0.tolist()
+    inp.target_velocity, inp.target_acceleration = [0.0] * n, [0.0] * n
+    inp.max_velocity = _limits(max_velocity, n, 'max_velocity').tolist()
+    inp.max_acceleration = _limits(max_acceleration, n, 'max_acceleration').tolist()
+    inp.max_jerk = _limits(max_jerk, n, 'max_jerk').tolist()
+    traj = Trajectory(n)
+    try:
+        result = Ruckig(n).calculate(inp, traj)
+    except RuckigError as exc:
+        raise ValueError(f'no jerk-limited stop: {" ".join(str(exc).split())}') from None
+    if result != Result.Working and result != Result.Finished:
+        raise ValueError(f'no jerk-limited stop within the limits (Ruckig: {result.name})')
+    if traj.duration <= 0.0:
+        raise ValueError('already at rest: nothing to stop')
+    return _to_piecewise(traj, n)
+
+
 def _to_piecewise(traj, n):
     """Ruckig's per-joint phases (brake pre-phase, seven jerk phases, a final hold) merged."""
     duration = traj.duration
