@@ -31,6 +31,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import cdr
 from .kinematics import ArmModel, Unreachable, pose_matrix
+from .kinematics.paths import check_joint_limits
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
@@ -358,11 +359,12 @@ class PlannerNode(Node):
         planning_ms = (time.perf_counter() - t0) * 1e3
         self._planning_time[kind] = planning_ms * 1e-3
         points = plan.samples(self.planner.settings.sample_period)
-        problem = self._beyond_limits(list(plan.joint_names or self.names), points)
-        if problem:
+        try:
             # Checked as the controller will check it: a plan it would reject is never sent as accepted.
-            self._refuse(kind, key, f'the plan {problem} (from a {source} start: the arm\'s motion '
-                                    'cannot be carried on within the limits); try again')
+            check_joint_limits(self.arm, *points, names=list(plan.joint_names or self.names))
+        except Unreachable as exc:
+            self._refuse(kind, key, f'the plan breaks a limit (from a {source} start: the arm\'s motion cannot '
+                                    f'be carried on within it): {exc}')
             return
         self._publish_trajectory(list(plan.joint_names or self.names), t_start, points)
         self._sent.append((plan.trajectory, t_start))
@@ -384,20 +386,6 @@ class PlannerNode(Node):
                 return False
             time.sleep(0.02)
         return True
-
-    def _beyond_limits(self, names, points, slack=1e-6):
-        """What the trajectory points ``(t, q, qd, qdd)`` break of the arm's limits, or ''."""
-        t, *values = points
-        every = list(self.arm.all_joint_names)
-        idx = [every.index(n) for n in names]
-        lower, upper, vmax, amax = (np.asarray(x)[idx] for x in self.arm.all_limits)
-        for what, arr, lo, hi in (('position', values[0], lower, upper), ('velocity', values[1], -vmax, vmax),
-                                  ('acceleration', values[2], -amax, amax)):
-            bad = (arr < lo - slack) | (arr > hi + slack)
-            if bad.any():
-                i, j = np.argwhere(bad)[0]
-                return f'breaks the {what} limit of {names[j]} ({arr[i, j]:.4g}) at t = {t[i]:.3f} s'
-        return ''
 
     def _publish_trajectory(self, names, t_start, points):
         """The plan on ``joint_trajectory``, stamped with its start time."""

@@ -188,3 +188,25 @@ def test_single_pose_fast_path_agrees_with_the_batched_solver(fixture, request):
         else:
             with pytest.raises(Unreachable):
                 model.ik(T[i], seeds[i])
+
+
+def test_joint_limits_are_checked_for_the_joints_named_gripper_included(arm):
+    from picking_planner.kinematics import Unreachable
+    from picking_planner.kinematics.paths import check_joint_limits
+    names = list(arm.all_joint_names)
+    lower, upper, vmax, amax = arm.all_limits
+    t = np.array([0.0, 0.01])
+    q = np.tile(0.5 * (lower + upper), (2, 1))
+    zero = np.zeros_like(q)
+    check_joint_limits(arm, t, q, zero, zero, names=names)                  # within every limit
+    fast = zero.copy()
+    fast[1, -1] = 1.01 * vmax[-1]
+    with pytest.raises(Unreachable, match=f'velocity limit broken: {names[-1]} .* at t = 0.010 s'):
+        check_joint_limits(arm, t, q, fast, zero, names=names)
+    # in another order, and only some joints
+    some = [names[2], names[0]]
+    check_joint_limits(arm, t, q[:, [2, 0]], zero[:, :2], zero[:, :2], names=some)
+    with pytest.raises(ValueError, match='unknown joints'):
+        check_joint_limits(arm, t, q[:, :1], zero[:, :1], zero[:, :1], names=['tail_joint'])
+    with pytest.raises(ValueError, match='needs times'):
+        check_joint_limits(arm, t, q, zero, zero, names=some)

@@ -152,28 +152,39 @@ def _sequential(arm, poses, t, seed, max_joint_step):
     return q
 
 
-def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6):
+def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6, names=None):
     """Raise Unreachable naming the first joint and time that break a position,
     velocity or acceleration limit of ``arm``.
 
-    ``t`` has shape (N,); ``q``, ``qd``, ``qdd`` shape (N, dof) (ValueError otherwise, and
-    for non-finite values).
+    ``t`` has shape (N,); ``q``, ``qd``, ``qdd`` shape (N, dof), or (N, len(names)) for
+    the joints ``names`` of :attr:`ArmModel.all_joint_names` (the gripper too)
+    (ValueError otherwise, and for non-finite values or unknown names).
     """
+    if names is None:
+        names, limits = list(arm.joint_names), (arm.lower, arm.upper, arm.max_velocity, arm.max_acceleration)
+    else:
+        every = list(arm.all_joint_names)
+        unknown = [n for n in names if n not in every]
+        if unknown:
+            raise ValueError(f'check_joint_limits: unknown joints {unknown}')
+        idx = [every.index(n) for n in names]
+        limits = tuple(np.asarray(x)[idx] for x in arm.all_limits)
     t = np.asarray(t, dtype=float)
     arrays = [np.asarray(x, dtype=float) for x in (q, qd, qdd)]
-    if t.ndim != 1 or any(a.shape != (t.size, arm.dof) for a in arrays):
-        raise ValueError(f'check_joint_limits needs times (N,) and joint values (N, {arm.dof}), got '
+    if t.ndim != 1 or any(a.shape != (t.size, len(names)) for a in arrays):
+        raise ValueError(f'check_joint_limits needs times (N,) and joint values (N, {len(names)}), got '
                          f'{t.shape} and {[a.shape for a in arrays]}')
     if not (np.all(np.isfinite(t)) and all(np.all(np.isfinite(a)) for a in arrays)):
         raise ValueError('check_joint_limits needs finite times and joint values')
     q, qd, qdd = arrays
+    lower, upper, vmax, amax = limits
     for name, values, lo, hi, unit in (
-            ('position', q, arm.lower, arm.upper, 'rad'),
-            ('velocity', qd, -arm.max_velocity, arm.max_velocity, 'rad/s'),
-            ('acceleration', qdd, -arm.max_acceleration, arm.max_acceleration, 'rad/s^2')):
+            ('position', q, lower, upper, 'rad'),
+            ('velocity', qd, -vmax, vmax, 'rad/s'),
+            ('acceleration', qdd, -amax, amax, 'rad/s^2')):
         bad = (values < lo - slack) | (values > hi + slack)
         if bad.any():
             i, j = np.argwhere(bad)[0]
             limit = hi[j] if values[i, j] > hi[j] else lo[j]
-            raise Unreachable(f'{name} limit broken: {arm.joint_names[j]} reaches {values[i, j]:.4g} {unit} '
+            raise Unreachable(f'{name} limit broken: {names[j]} reaches {values[i, j]:.4g} {unit} '
                               f'at t = {t[i]:.3f} s, limit {limit:.4g} {unit}; slow the motion down')
