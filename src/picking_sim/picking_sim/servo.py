@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: s: how far back a servo catching up after a stall takes a command stamped in its future.
+CATCH_UP = 0.25
+
 
 @dataclass
 class ServoParams:
@@ -122,7 +125,10 @@ class Servo:
         ``age`` is how long ago the command was sampled, s (its stamp against the
         servo's clock): the reference starts from where the command has moved
         since, so transport delay does not make the arm lag. Ages beyond the
-        command timeout are not extrapolated (a stale command is only held).
+        command timeout are not extrapolated (a stale command is only held). A
+        negative age, down to -CATCH_UP s, is a command from the servo's future: a
+        servo catching up on steps it missed (its thread was stalled) takes the
+        command back to the time of the step, instead of jumping ahead to it.
         """
         q = np.asarray(q, dtype=float)
         if q.shape != self.q.shape or not np.isfinite(q.sum()):
@@ -133,7 +139,7 @@ class Servo:
         if qd.shape != q.shape or qdd.shape != q.shape or not np.isfinite(qd.sum() + qdd.sum()):
             raise ValueError(f'velocity and acceleration feedforward must be {self.n_joints} finite values')
         age = float(age)
-        if not (np.isfinite(age) and 0.0 < age < self.command_timeout):
+        if not (np.isfinite(age) and -CATCH_UP <= age < self.command_timeout):
             age = 0.0
         if age:
             self.ref_q = q + qd * age + 0.5 * qdd * age * age
@@ -141,7 +147,7 @@ class Servo:
         else:
             self.ref_q, self.ref_qd = q.copy(), qd.copy()
         self.ref_qdd = qdd.copy()
-        self._since_command = int(age / self.dt)
+        self._since_command = int(age / self.dt)      # counted from the command's own time
 
     def step(self, steps=1):
         """Advance ``steps`` servo periods; between commands the reference moves on

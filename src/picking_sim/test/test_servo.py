@@ -48,9 +48,30 @@ def test_late_commands_are_moved_on_to_the_servo_time():
 
 def test_stale_or_bad_ages_are_not_extrapolated():
     servo = Servo([0.0], command_timeout=0.05)
-    for age in (np.nan, -0.01, 0.2):
+    for age in (np.nan, -1.0, 0.2):
         servo.command([1.0], [2.0], [0.0], age=age)
         assert servo.ref_q[0] == 1.0
+
+
+def test_a_servo_catching_up_after_a_stall_follows_the_commands_not_ahead_of_them():
+    # The servo's thread stalls for 80 ms at 0.3 s; it wakes with its clock still at 0.3 s and
+    # the newest command sampled at 0.38 s (in its future), and runs the missed steps at once.
+    traj = trajectory.quintic(np.zeros(1), [1.0], 1.0)
+    servo = Servo(np.zeros(1), params=ServoParams(max_velocity=5.0), command_timeout=0.05)
+    worst, steps = 0.0, int(round(1.2 / servo.dt))
+    k = 0
+    while k < steps:
+        t = k * servo.dt
+        stall = 0.3 <= t < 0.3 + 1e-9 + servo.dt / 2
+        sampled = t + 0.08 if stall else t
+        q, qd, qdd = (x[0] for x in traj.sample(np.array([sampled])))
+        servo.command(q, qd, qdd, age=t - sampled)
+        for _ in range(80 if stall else 1):
+            servo.step()
+            k += 1
+            worst = max(worst, abs(servo.q[0] - traj.sample(np.array([k * servo.dt]))[0][0, 0]))
+            assert servo.commanded                    # 80 ms of catching up is not "no commands"
+    assert np.degrees(worst) < 0.05
 
 
 def test_holds_its_position_without_commands():
