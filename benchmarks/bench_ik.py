@@ -55,7 +55,7 @@ def run(repeats=15):
             verdict = ('met' if ratio >= goal else 'missed') if goal else '—'
         else:
             detail, verdict = f'rtb {peer}: not installed', '—'
-        rows.append(['1', 'IK one pose (6R, closed form)', result, detail,
+        rows.append(['1', 'IK one pose (6R, closed form, compiled)', result, detail,
                      f'≥ {goal:g}x {peer}' if goal else '—', verdict])
     rows.append(['1', 'IK one pose, absolute (issue 3)', fmt_time(ours), '—', '≤ 25 µs',
                  'met' if ours <= 25e-6 else 'missed'])

@@ -167,6 +167,15 @@ def test_fk_ik_and_reachability(arm, T):
     assert np.all(np.isfinite(q[ok]))
 
 
+@given(vectors(3), vectors(4), vectors(7))
+def test_ik_of_any_position_and_orientation_from_any_seed(arm, p, quat, seed):
+    T = refused_or_finite(pose_matrix, p, quat)
+    if T is not None:
+        q = refused_or_finite(arm.ik, T, seed)
+        if q is not None:
+            assert np.all(arm.within_limits(q))
+
+
 @given(vectors(3), vectors(4))
 def test_pose_matrix(p, quat):
     refused_or_finite(pose_matrix, p, quat)

@@ -102,6 +102,13 @@ def test_malformed_or_non_finite_poses_are_value_errors(arm, bad):
     assert not isinstance(info.value, Unreachable)
 
 
+@pytest.mark.parametrize('bad', [[np.nan] * 6, [0.0] * 5, [0.0, 0.1, 1.0, 0.0, np.inf, 0.0]])
+def test_malformed_or_non_finite_seeds_are_value_errors(arm, bad):
+    with pytest.raises(ValueError, match='seed') as info:
+        arm.ik(arm.fk([0.0, 0.3, 1.2, 0.0, 0.5, 0.0]), bad)
+    assert not isinstance(info.value, Unreachable)
+
+
 def test_pose_matrix_refuses_zero_quaternion():
     with pytest.raises(ValueError, match='quaternion is zero'):
         pose_matrix([0.5, 0, 0.5], [0, 0, 0, 0])
@@ -175,19 +182,34 @@ def test_cartesian_path_too_fast_breaks_a_velocity_limit(arm):
 
 
 @pytest.mark.parametrize('fixture', ['arm', 'arm3'])
-def test_single_pose_fast_path_agrees_with_the_batched_solver(fixture, request):
+def test_compiled_single_pose_ik_agrees_with_the_batched_solver(fixture, request):
     model = request.getfixturevalue(fixture)
+    assert model.load_ik(), 'the compiled single-pose IK did not load (numba is a requirement)'
     rng = np.random.default_rng(6)
-    Q = rng.uniform(model.lower, model.upper, (500, model.dof))
+    n = 10_000
+    Q = rng.uniform(model.lower, model.upper, (n, model.dof))
+    if model.dof == 6:
+        Q[: n // 10, 4] = 0.0                                  # singular wrists
     T = model.fk(Q)
-    seeds = np.clip(Q + rng.normal(0.0, 0.3, Q.shape), model.lower, model.upper)
-    batched, ok, _ = model.ik_batch(T, seeds)
-    for i in range(len(Q)):
+    T[-n // 10:, :3, 3] *= 1.6                                 # many out of reach
+    seeds = Q + rng.normal(0.0, 1.0, Q.shape)                  # far seeds, some beyond the limits
+    batched, ok, reasons = model.ik_batch(T, seeds)
+    assert 0.5 < ok.mean() < 0.95
+    for i in range(n):
         if ok[i]:
             assert model.ik(T[i], seeds[i]) == pytest.approx(batched[i], abs=1e-9)
         else:
-            with pytest.raises(Unreachable):
+            with pytest.raises(Unreachable, match=reasons[i].split(':')[0]):
                 model.ik(T[i], seeds[i])
+
+
+def test_ik_without_numba_runs_the_vectorised_solver(arm, monkeypatch):
+    monkeypatch.setattr(arm._solver, 'compiled', None)
+    q_true = np.array([0.4, 0.3, 1.1, 0.5, 0.8, -0.6])
+    assert not arm.load_ik()
+    assert arm.ik(arm.fk(q_true), q_true + 0.01) == pytest.approx(q_true, abs=1e-9)
+    with pytest.raises(Unreachable, match='out of reach'):
+        arm.ik(pose_matrix([2.0, 0.0, 0.5]))
 
 
 def test_joint_limits_are_checked_for_the_joints_named_gripper_included(arm):

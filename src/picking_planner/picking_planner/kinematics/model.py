@@ -294,17 +294,28 @@ class ArmModel:
         ValueError
             For non-finite or malformed input.
         """
-        T, rows = _check_pose(T, as_rows=True)
-        if hasattr(self._solver, 'solve_one'):
-            q, reason = self._solver.solve_one(rows, self._seed_list(seed))
-            if q is None:
-                raise Unreachable(reason)
-            return np.array(q)
-        seed = self._seed(seed)
+        compiled = self._solver.compiled
+        if compiled is not None:
+            pose = np.ascontiguousarray(T, dtype=float)
+            q0 = self._seed(None) if seed is None else np.ascontiguousarray(seed, dtype=float)
+            if pose.shape == (4, 4) and q0.shape == (self.dof,):
+                q = np.empty(self.dof)
+                if compiled(pose, q0, q) == 0:
+                    return q
+        # Without the compiled path, or to say why it failed: the vectorised solver.
+        T, seed = _check_pose(T), self._seed(seed)
         q, ok, reasons = self._solver.solve(T[None], seed[None])
         if not ok[0]:
             raise Unreachable(reasons[0])
         return q[0]
+
+    def load_ik(self):
+        """Load the compiled single-pose IK now (else the first :meth:`ik` call does).
+
+        Returns True if :meth:`ik` runs compiled, False if it runs the vectorised
+        solver (numba missing, or an arm without a closed form).
+        """
+        return self._solver.compiled is not None
 
     def ik_batch(self, T, seed=None):
         """IK for many poses at once.
@@ -327,19 +338,6 @@ class ArmModel:
             raise ValueError('T must be a finite array of poses, shape (N, 4, 4)')
         seed = np.broadcast_to(self._seed(seed), (T.shape[0], self.dof))
         return self._solver.solve(T, seed)
-
-    def _seed_list(self, seed):
-        """The seed as a list of floats (the single-pose fast path), validated."""
-        if seed is None:
-            return self._seed(None).tolist()
-        values = seed.tolist() if isinstance(seed, np.ndarray) else list(seed)
-        try:
-            values = [float(v) for v in values]
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f'seed must be {self.dof} numbers') from exc
-        if len(values) != self.dof or not all(map(math.isfinite, values)):
-            raise ValueError(f'seed must be {self.dof} finite joint values')
-        return values
 
     def _seed(self, seed):
         if seed is None:
@@ -366,11 +364,8 @@ class ArmModel:
         return self._solver.reach
 
 
-def _check_pose(T, as_rows=False):
-    """A finite 4x4 pose with a proper rotation block, else ValueError (in plain floats: fast).
-
-    With ``as_rows=True`` also returns the pose as nested lists of floats.
-    """
+def _check_pose(T):
+    """A finite 4x4 pose with a proper rotation block, else ValueError (in plain floats: fast)."""
     if not (isinstance(T, np.ndarray) and T.dtype == np.float64):
         T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
@@ -389,7 +384,7 @@ def _check_pose(T, as_rows=False):
     det = a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
     if worst > 1e-6 or det < 0:
         raise ValueError('pose rotation block must be a proper rotation matrix')
-    return (T, rows) if as_rows else T
+    return T
 
 
 def load_joint_limits(path):

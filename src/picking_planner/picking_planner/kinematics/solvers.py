@@ -13,7 +13,7 @@ used only after a self-test against forward kinematics when the arm is loaded.
 
 from __future__ import annotations
 
-import math
+import functools
 
 import numpy as np
 
@@ -75,41 +75,6 @@ def _wrap_into_limits(q, seed, lower, upper, revolute):
     return q, ok.all(axis=-1)
 
 
-def _nearest_images(values, first, seed, lower, upper, revolute, bound=math.inf):
-    """Joints ``first, first+1, ...`` moved to their images nearest the seed within the limits.
-
-    Returns ``(list, squared distance to the seed)``, or None if a joint cannot be placed
-    or the distance reaches ``bound`` (a nearer solution is known: stop early).
-    """
-    out, dist = [], 0.0
-    for j, v in enumerate(values, start=first):
-        sj = seed[j]
-        # Fast accept: inside the limits and already the 2 pi image nearest the seed.
-        if not (lower[j] <= v <= upper[j] and -math.pi <= v - sj <= math.pi):
-            v = _wrap(v, sj, lower[j], upper[j], revolute[j])
-            if v is None:
-                return None
-        out.append(v)
-        dist += (v - sj) ** 2
-        if dist >= bound:
-            return None
-    return out, dist
-
-
-def _wrap(v, s, lo, hi, revolute):
-    """One joint value shifted by 2 pi into [lo, hi], nearest ``s``; None if it cannot be."""
-    if revolute:
-        v += TWO_PI * round((s - v) / TWO_PI)
-    if lo - _TOL <= v <= hi + _TOL:
-        return v
-    if revolute:
-        step = TWO_PI if s >= v else -TWO_PI
-        for alt in (v + step, v - step):
-            if lo - _TOL <= alt <= hi + _TOL:
-                return alt
-    return None
-
-
 class _ClosedForm:
     """Shared shape of the closed-form solvers."""
 
@@ -122,8 +87,6 @@ class _ClosedForm:
         self.l2, self.l3 = l2, l3
         self.reach = (abs(l2 - l3), l2 + l3)
         self.revolute = np.array([t != 'prismatic' for t in arm.joint_types], dtype=float)
-        self._revolute_flags = [t != 'prismatic' for t in arm.joint_types]
-        self._limits = (arm.lower.tolist(), arm.upper.tolist())
 
     # Position part: waist, shoulder and elbow for wrist-centre targets W (N, 3),
     # four branches (front/back x elbow up/down). Returns (N, 4, 3) and reach mask (N,).
@@ -156,15 +119,41 @@ class _ClosedForm:
     def quick_reject(self, T):
         return self._reach_reason(self._targets(T[None])[0])
 
-    def self_test(self, n=64):
-        """IK of FK of random configurations within the limits gives poses back exactly."""
+    def _test_poses(self, n=64):
+        """Random configurations within the limits, and their tool poses."""
         rng = np.random.default_rng(12345)
         lo = np.where(np.isfinite(self.arm.lower), self.arm.lower, -np.pi)
         hi = np.where(np.isfinite(self.arm.upper), self.arm.upper, np.pi)
         Q = rng.uniform(lo, hi, (n, self.arm.dof))
-        T = self.arm.joint_frames(Q)[:, -1]
+        return Q, self.arm.joint_frames(Q)[:, -1]
+
+    def self_test(self):
+        """IK of FK of random configurations within the limits gives poses back exactly."""
+        Q, T = self._test_poses()
         q, ok, _ = self.solve(T, Q)
         return bool(ok.all() and self._confirm(q, T).all())
+
+    @functools.cached_property
+    def compiled(self):
+        """The compiled single-pose solve, ``f(pose, seed, q_out) -> status`` (:mod:`.fast_ik`).
+
+        Loaded on first use, and used only if it gives the vectorised path's solutions
+        for the self-test poses (seeded off their configurations). None without numba.
+        """
+        try:
+            from . import fast_ik
+        except ImportError:
+            return None
+        solve = fast_ik.bind(self)
+        Q, T = self._test_poses()
+        seeds = np.roll(Q, 1, axis=0)
+        expected, ok, _ = self.solve(T, seeds)
+        q = np.empty(self.arm.dof)
+        for i in range(len(T)):
+            status = solve(T[i], seeds[i], q)
+            if (status == fast_ik.OK) != ok[i] or (ok[i] and not np.allclose(q, expected[i], atol=1e-9)):
+                return None
+        return solve
 
     def solve(self, T, seed):
         cand, reach_ok = self.candidates(T, seed)                     # (N, B, dof)
@@ -184,49 +173,6 @@ class _ClosedForm:
             reasons[i] = (self._reach_reason(W[k]) or
                           'beyond joint limits: every IK solution puts a joint outside its limits')
         return q, ok, reasons
-
-    def solve_one(self, rows, seed):
-        """One pose as nested lists of floats: the same solutions as :meth:`solve`, fast.
-
-        Returns ``(q, '')`` or ``(None, reason)``.
-        """
-        W = self._target_one(rows)
-        arms = self._arm_branches_one(W, seed)
-        if arms is None:
-            return None, self._reach_reason(np.array(W))
-        lower, upper, revolute = self._limits[0], self._limits[1], self._revolute_flags
-        best, best_d = None, math.inf
-        # Likely nearest branch first (same shoulder side and elbow sign as the seed), so
-        # that the others are pruned after a joint or two.
-        s0, s2 = seed[0], seed[2]
-        arms.sort(key=lambda a: abs(math.remainder(a[0] - s0, TWO_PI)) + abs(a[2] - s2))
-        for arm_q in arms:
-            head = _nearest_images(arm_q, 0, seed, lower, upper, revolute, best_d)
-            if head is None:
-                continue
-            for wrist in self._wrist_one(arm_q, seed):
-                tail = _nearest_images(wrist, 3, seed, lower, upper, revolute, best_d - head[1])
-                if tail is not None:
-                    best, best_d = head[0] + tail[0], head[1] + tail[1]
-        if best is None:
-            return None, 'beyond joint limits: every IK solution puts a joint outside its limits'
-        return best, ''
-
-    def _arm_branches_one(self, W, seed):
-        x, y, z = W[0] - self.shoulder[0], W[1] - self.shoulder[1], W[2] - self.shoulder[2]
-        rho = math.hypot(x, y)
-        l2, l3 = self.l2, self.l3
-        D = (rho * rho + z * z - l2 * l2 - l3 * l3) / (2.0 * l2 * l3)
-        if abs(D) > 1.0 + 1e-12:
-            return None
-        q1 = seed[0] if rho < _TOL else math.atan2(y, x)
-        q3 = math.acos(max(-1.0, min(1.0, D)))
-        out = []
-        for q1b, r in ((q1, rho), (q1 + math.pi, -rho)):
-            for q3b in (q3, -q3):
-                q2 = math.atan2(r, z) - math.atan2(l3 * math.sin(q3b), l2 + l3 * math.cos(q3b))
-                out.append((q1b, q2, q3b))
-        return out
 
     def all_solutions(self, T):
         seed = np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof))
@@ -263,12 +209,6 @@ class Elbow3R(_ClosedForm):
     def _targets(self, T):
         return T[:, :3, 3]
 
-    def _target_one(self, rows):
-        return (rows[0][3], rows[1][3], rows[2][3])
-
-    def _wrist_one(self, arm_q, seed):
-        return ((),)
-
     def candidates(self, T, seed):
         return self._arm_branches(self._targets(T), seed)
 
@@ -294,51 +234,10 @@ class SphericalWrist6R(_ClosedForm):
             return None
         solver = cls(arm, o[0][:3, 3], d, l2, l3)
         solver.tool_inv = np.linalg.inv(arm._tool)
-        solver._tool_offset = _pure_z_offset(arm._tool)
         return solver
 
     def _targets(self, T):
         return (T @ self.tool_inv)[:, :3, 3]
-
-    def _target_one(self, rows):
-        """The flange pose (nested lists) and the wrist centre, for a pose given as nested lists."""
-        if self._tool_offset is not None:
-            # A tool that only sits d along the flange's z axis: flange = pose moved back by d.
-            d = self._tool_offset
-            self._flange = F = [[r[0], r[1], r[2], r[3] - d * r[2]] for r in rows[:3]]
-        else:
-            self._flange = F = (np.array(rows) @ self.tool_inv).tolist()
-        return (F[0][3], F[1][3], F[2][3])
-
-    def _wrist_one(self, arm_q, seed):
-        """The two wrist solutions (q4, q5, q6) for one arm branch: R36 = R03^T R06 in ZYZ."""
-        F = self._flange
-        q1, q2, q3 = arm_q
-        c1, s1 = math.cos(q1), math.sin(q1)
-        c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
-        # The rows of R03^T = (Rz(q1) Ry(q2 + q3))^T, applied to the flange rotation.
-        a0, a1, a2 = c1 * c23, s1 * c23, -s23
-        b0, b1 = -s1, c1
-        e0, e1, e2 = c1 * s23, s1 * s23, c23
-        r02 = a0 * F[0][2] + a1 * F[1][2] + a2 * F[2][2]
-        r12 = b0 * F[0][2] + b1 * F[1][2]
-        r22 = e0 * F[0][2] + e1 * F[1][2] + e2 * F[2][2]
-        r20 = e0 * F[0][0] + e1 * F[1][0] + e2 * F[2][0]
-        r21 = e0 * F[0][1] + e1 * F[1][1] + e2 * F[2][1]
-        s5 = math.hypot(r02, r12)
-        q5 = math.atan2(s5, r22)
-        if s5 < _SINGULAR:
-            # Only q4 + q6 (q4 - q6 when q5 = pi) is defined: keep q4 at the seed.
-            r00 = a0 * F[0][0] + a1 * F[1][0] + a2 * F[2][0]
-            r10 = b0 * F[0][0] + b1 * F[1][0]
-            r01 = a0 * F[0][1] + a1 * F[1][1] + a2 * F[2][1]
-            r11 = b0 * F[0][1] + b1 * F[1][1]
-            q4 = seed[3]
-            q6 = math.atan2(r10, r00) - q4 if r22 > 0 else q4 - math.atan2(-r01, r11)
-        else:
-            q4 = math.atan2(r12, r02)
-            q6 = math.atan2(r21, -r20)
-        return ((q4, q5, q6), (q4 + math.pi, -q5, q6 + math.pi))
 
     def candidates(self, T, seed):
         flange = T @ self.tool_inv
@@ -385,6 +284,7 @@ class NumericSolver:
     """
 
     name = 'numeric'
+    compiled = None
 
     def __init__(self, arm, restarts=8, iterations=200, damping=1e-3, seed=0):
         self.arm = arm
