@@ -203,6 +203,19 @@ def test_compiled_single_pose_ik_agrees_with_the_batched_solver(fixture, request
                 model.ik(T[i], seeds[i])
 
 
+def test_compiled_ik_takes_any_array_without_compiling_again(arm):
+    # A read-only, Fortran-ordered or integer input would make numba compile a new version
+    # (seconds, in the middle of planning): the arrays are made plain first.
+    q_true = np.array([0.4, 0.3, 1.1, 0.5, 0.8, -0.6])
+    T = np.asfortranarray(arm.fk(q_true))
+    seed = q_true + 0.01
+    T.flags.writeable = seed.flags.writeable = False
+    assert arm.ik(T, seed) == pytest.approx(q_true, abs=1e-9)
+    assert arm.ik(T, [0, 0, 1, 0, 1, 0]) is not None
+    assert arm.ik(T.tolist(), tuple(seed)) == pytest.approx(q_true, abs=1e-9)
+    assert len(arm._solver.compiled.func.signatures) == 1
+
+
 def test_ik_without_numba_runs_the_vectorised_solver(arm, monkeypatch):
     monkeypatch.setattr(arm._solver, 'compiled', None)
     q_true = np.array([0.4, 0.3, 1.1, 0.5, 0.8, -0.6])

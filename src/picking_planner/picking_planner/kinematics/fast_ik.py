@@ -4,10 +4,10 @@ The same solutions as the vectorised closed forms of :mod:`.solvers` (every
 branch, each joint moved to its 2 pi image nearest the seed within the limits,
 the valid solution nearest the seed), in one compiled function: the pose and
 seed checks, the 4 arm branches and the 2 wrist flips of each run without a
-Python object in between. numba compiles it on first use (about 2 s) and keeps
-the machine code in its cache beside this file (``__pycache__``), so later
-processes load it in a fraction of a second; ``make`` builds that cache when it
-installs.
+Python object in between. numba compiles it when this module is first imported
+(about 2 s) and keeps the machine code in its cache beside this file
+(``__pycache__``), so later processes load it in a fraction of a second; ``make``
+builds that cache when it installs.
 
 Everything is checked in the compiled code and reported as a status code, so
 that the caller raises the same errors as the vectorised path. The model is
@@ -65,7 +65,13 @@ def _image(v, s, lo, hi, revolute):
     return v, False
 
 
-@njit(cache=True, nogil=True, error_model='numpy')
+# One signature, compiled (or loaded from the cache) at import: a call with other types raises
+# TypeError instead of compiling a new version in the middle of planning (seconds). Callers pass
+# writable, aligned, C-contiguous float64 arrays (see ArmModel.ik).
+SIGNATURE = 'int64(float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1])'
+
+
+@njit(SIGNATURE, cache=True, nogil=True, error_model='numpy')
 def solve(geometry, tool_inv, limits, pose, seed, q_out):
     """The valid solution nearest ``seed`` for the tool ``pose`` into ``q_out``; a status code.
 

@@ -296,8 +296,8 @@ class ArmModel:
         """
         compiled = self._solver.compiled
         if compiled is not None:
-            pose = np.ascontiguousarray(T, dtype=float)
-            q0 = self._seed(None) if seed is None else np.ascontiguousarray(seed, dtype=float)
+            pose = _plain_floats(T)
+            q0 = self._seed(None) if seed is None else _plain_floats(seed)
             if pose.shape == (4, 4) and q0.shape == (self.dof,):
                 q = np.empty(self.dof)
                 if compiled(pose, q0, q) == 0:
@@ -362,6 +362,14 @@ class ArmModel:
     def reach(self):
         """(inner, outer) radius of the reach shell about the shoulder, m (closed-form arms)."""
         return self._solver.reach
+
+
+def _plain_floats(x):
+    """``x`` as a writable, aligned, C-contiguous float64 array (no copy when it is one already):
+    the one signature of the compiled IK."""
+    a = np.ascontiguousarray(x, dtype=float)
+    flags = a.flags
+    return a if flags.writeable and flags.aligned else a.copy()
 
 
 def _check_pose(T):
