@@ -13,6 +13,7 @@ middleware serialise differently.
 
 from __future__ import annotations
 
+import functools
 import struct
 
 import numpy as np
@@ -67,13 +68,37 @@ def joint_trajectory(stamp_ns, frame_id, names, t, q, qd, qdd):
     secs, nanos = (ns // 1_000_000_000).tolist(), (ns % 1_000_000_000).tolist()
     q, qd, qdd = (np.ascontiguousarray(x, dtype='<f8') for x in (q, qd, qdd))
     w.u32(len(secs))
-    for i in range(len(secs)):
-        w.doubles(q[i])
-        w.doubles(qd[i])
-        w.doubles(qdd[i])
-        w.u32(0)                                  # effort: none
-        w.buf += _STAMP.pack(secs[i], nanos[i])   # time_from_start (4-aligned here)
+    first = 0
+    if len(names) == 0 or (len(w.buf) - 4) % 8 == 0:
+        # A point that starts 8-aligned pads differently from the rest (and points without
+        # joints have no padding at all): written one by one.
+        first = len(secs) if len(names) == 0 else min(1, len(secs))
+        for i in range(first):
+            w.doubles(q[i])
+            w.doubles(qd[i])
+            w.doubles(qdd[i])
+            w.u32(0)                                  # effort: none
+            w.buf += _STAMP.pack(secs[i], nanos[i])   # time_from_start (4-aligned here)
+    if first < len(secs):
+        # Every other point starts at 4 mod 8 and has the same layout: written at once.
+        points = np.zeros(len(secs) - first, dtype=_point_dtype(len(names)))
+        points['n_q'] = points['n_qd'] = points['n_qdd'] = len(names)
+        points['q'], points['qd'], points['qdd'] = q[first:], qd[first:], qdd[first:]
+        points['sec'], points['nanosec'] = secs[first:], nanos[first:]
+        w.buf += points.tobytes()
     return bytes(w.buf)
+
+
+@functools.lru_cache(maxsize=16)
+def _point_dtype(n):
+    """A JointTrajectoryPoint of ``n`` joints starting at 4 mod 8: each sequence's length, then
+    (padded to 8) its doubles; an empty effort; time_from_start."""
+    return np.dtype({
+        'names': ['n_q', 'q', 'n_qd', 'qd', 'n_qdd', 'qdd', 'n_effort', 'sec', 'nanosec'],
+        'formats': ['<u4', ('<f8', n), '<u4', ('<f8', n), '<u4', ('<f8', n), '<u4', '<i4', '<u4'],
+        'offsets': [0, 4, 4 + 8 * n, 12 + 8 * n, 12 + 16 * n, 20 + 16 * n, 20 + 24 * n, 24 + 24 * n,
+                    28 + 24 * n],
+        'itemsize': 32 + 24 * n})
 
 
 def path(stamp_ns, frame_id, positions, quaternions):
@@ -87,12 +112,23 @@ def path(stamp_ns, frame_id, positions, quaternions):
     w.buf += stamp
     w.string(frame_id)
     w.u32(len(poses))
-    for row in poses:
+    # Each PoseStamped: the header (stamp, frame), padding to 8, seven doubles. Its size is a
+    # multiple of 8 from the second pose on, so the rest repeat the second's bytes but for the
+    # pose: written at once.
+    first = min(2, len(poses))
+    for row in poses[:first]:
         w.align(4)
+        start = len(w.buf)
         w.buf += stamp
         w.string(frame_id)
         w.align(8)
+        header = bytes(w.buf[start:])
         w.buf += row.tobytes()
+    if len(poses) > first:
+        rest = np.empty((len(poses) - first, len(header) + 56), dtype=np.uint8)
+        rest[:, :len(header)] = np.frombuffer(header, dtype=np.uint8)
+        rest[:, len(header):] = poses[first:].view(np.uint8).reshape(len(rest), 56)
+        w.buf += rest.tobytes()
     return bytes(w.buf)
 
 

@@ -22,7 +22,9 @@ def _classic(stamp_ns, frame_id, names, t, q, qd, qdd):
 
 
 @pytest.mark.parametrize('joints, points, frame', [(7, 300, ''), (6, 1, 'base_link'), (1, 5, 'b'), (3, 0, 'wörld'),
-                                                     (8, 17, 'abc')])
+                                                     (8, 17, 'abc'), (0, 4, 'x')]
+                         # Frames of every length mod 8: the points start at either alignment.
+                         + [(6, 20, 'f' * k) for k in range(8)])
 def test_a_trajectory_in_cdr_bytes_reads_back_as_the_message_the_classes_build(joints, points, frame):
     rng = np.random.default_rng(joints * 100 + points)
     names = [f'joint_{i}' * (i % 3 + 1) for i in range(joints)]
@@ -33,14 +35,15 @@ def test_a_trajectory_in_cdr_bytes_reads_back_as_the_message_the_classes_build(j
     assert fast == _classic(stamp, frame, names, t, q, qd, qdd)
 
 
-@pytest.mark.parametrize('poses', [0, 1, 2, 150])
-def test_a_tool_path_in_cdr_bytes_reads_back_with_every_pose(poses):
+@pytest.mark.parametrize('poses, frame', [(0, 'base_link'), (1, 'base_link'), (2, 'base_link'), (3, 'base_link'),
+                                          (150, 'base_link')] + [(5, 'f' * k) for k in range(8)])
+def test_a_tool_path_in_cdr_bytes_reads_back_with_every_pose(poses, frame):
     rng = np.random.default_rng(poses)
     xyz = rng.normal(0, 1, (poses, 3))
     quat = rng.normal(0, 1, (poses, 4))
     quat /= np.linalg.norm(quat, axis=1, keepdims=True) if poses else 1.0
-    msg = deserialize_message(cdr.path(12_000_000_005, 'base_link', xyz, quat), Path)
-    assert msg.header.frame_id == 'base_link' and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 5)
+    msg = deserialize_message(cdr.path(12_000_000_005, frame, xyz, quat), Path)
+    assert msg.header.frame_id == frame and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 5)
     assert len(msg.poses) == poses
     for i, p in enumerate(msg.poses):
         assert p.header == msg.header
