@@ -24,6 +24,8 @@ from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
 
 LIFT_METHODS = ('line', 'arc')
+#: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
+BLEND_SPEEDS = (0.0, 0.3, 0.6, 0.9)
 TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
 
 
@@ -65,6 +67,13 @@ class PickSettings:
         back by this much, rad (clearance over the canopy and the box rim).
     gripper_open, gripper_closed : float
         Finger opening, m.
+    blend : bool
+        Pass P1, P3 and P4 at speed instead of stopping there: the approach flows into
+        the line to the apple, the lift into the transfer, the transfer into the line
+        into the box (each at the fastest of BLEND_SPEEDS, the lines still straight).
+        Needs the ``optimal`` approach and transfer methods and the planner's
+        ``cartesian_profile: optimal`` (jerk-limited: the joints' velocity and
+        acceleration stay continuous through the blends).
     """
 
     home_positions: tuple = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
@@ -82,6 +91,7 @@ class PickSettings:
     transfer_lift: float = 0.15
     gripper_open: float = 0.09
     gripper_closed: float = 0.055
+    blend: bool = False
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -107,6 +117,9 @@ class PickSettings:
             raise ValueError(f'transfer_method must be one of {TRANSFER_METHODS}, got {self.transfer_method!r}')
         if not 0.0 <= self.gripper_closed < self.gripper_open:
             raise ValueError('need 0 <= gripper_closed < gripper_open')
+        if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
+            raise ValueError('blend needs approach_method and transfer_method optimal (jerk-limited moves to '
+                             'and from moving states)')
         return self
 
 
@@ -145,6 +158,9 @@ class PickCycle:
         Raises Unreachable naming the knot point that cannot be reached.
         """
         pl, s, arm = self.planner, self.s, self.arm
+        if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
+            raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
+                             'entered and left at speed)')
         joint_method = s.approach_method
         poses = self.key_poses(T_apple)
         home = np.asarray(s.home_positions, float)
@@ -173,27 +189,39 @@ class PickCycle:
             add('brake', 'quintic', stop)
         if np.abs(q_rest - home).max() > 1e-4:
             add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
-        add('P1 approach', joint_method, pl.joint_move(home, q['P1'], joint_method))
-        traj, path = pl.line(q['P1'], arm.fk(q['P1']), poses['P2'])
+        speeds = BLEND_SPEEDS if s.blend else (0.0,)
+
+        def moving(traj, end):
+            """Velocity and acceleration where ``traj`` starts (end=0) or ends (-1), for a blend."""
+            state = traj.start_state() if end == 0 else traj.end_state()
+            return state[1:] if s.blend else (None, None)
+
+        def transfer(lift, into_box=None):
+            """Lift end -> clearance -> P4 (the start of the line into the box, if planned)."""
+            q_lift = lift.end_state()[0]
+            q_box = into_box.start_state()[0] if into_box is not None else q['P4']
+            return pl._via(np.array([q_lift, self._clearance(q_lift, q_box), q_box]), s.transfer_method,
+                           moving(lift, -1) if s.blend else None,
+                           moving(into_box, 0) if s.blend and into_box is not None else None)
+
+        # P1: the approach ends where (and as fast as) the line to the apple starts.
+        approach, (traj, path) = self._quickest(
+            speeds, lambda f, rest: pl.line(q['P1'], arm.fk(q['P1']), poses['P2'], (f, 0.0), rest),
+            lambda line: pl.joint_move(home, line[0].start_state()[0], joint_method,
+                                       **dict(zip(('vf', 'af'), moving(line[0], 0)))))
+        add('P1 approach', joint_method, approach)
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
         add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
-        if s.lift_method == 'line':
-            traj, path = pl.line(q_apple, arm.fk(q_apple), poses['P3'])
-        else:
-            T2 = arm.fk(q_apple)
-            back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
-            back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
-            mid = T2.copy()
-            mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
-            end = T2.copy()
-            end[:3, 3] += back + np.array([0, 0, s.lift_height])
-            traj, path = pl.arc(q_apple, T2, mid, end)
-        add('P3 lift and detach', s.lift_method, traj, path)
-        q_lift = traj.end_state()[0]
-        transfer = pl._via(np.array([q_lift, self._clearance(q_lift, q['P4']), q['P4']]), s.transfer_method)
-        add('P4 above the box', s.transfer_method, transfer)
-        traj, path = pl.line(q['P4'], arm.fk(q['P4']), poses['P5'])
+        # P3: the lift flows into the transfer (stopping at P4 for this choice) ...
+        _, (lift, lift_path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest),
+                                              lambda line: transfer(line[0]))
+        add('P3 lift and detach', s.lift_method, lift, lift_path)
+        # ... and the transfer into the line into the box.
+        moved, (traj, path) = self._quickest(
+            speeds, lambda f, rest: pl.line(q['P4'], arm.fk(q['P4']), poses['P5'], (f, 0.0), rest),
+            lambda line: transfer(lift, line[0]))
+        add('P4 above the box', s.transfer_method, moved)
         add('P5 into the box', 'line', traj, path)
         q_box = traj.end_state()[0]
         add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
@@ -203,6 +231,43 @@ class PickCycle:
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)
+
+    @staticmethod
+    def _quickest(speeds, cartesian, joint):
+        """``(joint move, (trajectory, path))`` of the quickest pair over the blend speeds.
+
+        ``cartesian(f, rest)`` plans the line (or arc) at speed fraction ``f`` where it
+        meets the joint move (``rest``: its path from rest to rest, None for that one
+        itself); ``joint(line)`` plans the move that meets it. The first speed (rest)
+        must work; a faster one is skipped where it cannot (entering too fast to stop
+        in time, or a joint state the move cannot reach within the limits).
+        """
+        line = cartesian(speeds[0], None)
+        best, rest = (joint(line), line), line[1]
+        for f in speeds[1:]:
+            try:
+                line = cartesian(f, rest)
+                move = joint(line)
+            except (ValueError, Unreachable):
+                continue
+            if move.duration + line[0].duration < best[0].duration + best[1][0].duration:
+                best = (move, line)
+        return best
+
+    def _lift(self, q_apple, poses, speed, rest=None):
+        """The lift from the apple to P3 (a line, or an arc that also pulls back), leaving P3
+        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest)."""
+        pl, s = self.planner, self.s
+        T2 = self.arm.fk(q_apple)
+        if s.lift_method == 'line':
+            return pl.line(q_apple, T2, poses['P3'], (0.0, speed), rest)
+        back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
+        back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
+        mid = T2.copy()
+        mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
+        end = T2.copy()
+        end[:3, 3] += back + np.array([0, 0, s.lift_height])
+        return pl.arc(q_apple, T2, mid, end, (0.0, speed), rest)
 
     def _quickest_place(self, poses, q_lift, home):
         """P4 and P5 turned about the vertical for the quickest transfer and return."""

@@ -307,18 +307,21 @@ class Planner:
         return Plan(whole, method, segments, list(cartesian), self.arm.joint_names)
 
     # -- pose goals -----------------------------------------------------------------------
-    def joint_move(self, q0, qf, method, duration=None, v0=None, a0=None):
-        """A joint-space move between configurations within the limits."""
+    def joint_move(self, q0, qf, method, duration=None, v0=None, a0=None, vf=None, af=None):
+        """A joint-space move between configurations within the limits (``optimal`` only:
+        to a moving target state ``vf``, ``af``)."""
         if method not in JOINT_METHODS:
             raise ValueError(f'unknown joint method {method!r}; choose one of {", ".join(JOINT_METHODS)}')
         if self.settings.limit_jerk and method in JERK_UNBOUNDED:
             raise ValueError(f'{method} moves step the acceleration (unbounded jerk): with limit_jerk choose '
                              'optimal or quintic')
         if method == 'optimal':
-            traj = trajectory.time_optimal(q0, qf, self._vmax, self._amax, self._jmax, v0, a0,
+            traj = trajectory.time_optimal(q0, qf, self._vmax, self._amax, self._jmax, v0, a0, vf, af,
                                            min_duration=duration or self.settings.duration or 0.0)
             self._check(traj, 'optimal move')
             return traj
+        if vf is not None or af is not None:
+            raise ValueError('only optimal moves end at a moving target state')
         T = duration or self.settings.duration or self.shortest_duration(q0, qf, method)
         if method == 'cubic':
             traj = trajectory.cubic(q0, qf, T, 0.0 if v0 is None else v0)
@@ -359,8 +362,16 @@ class Planner:
         return self._join(parts, method)
 
     # -- Cartesian lines and arcs ----------------------------------------------------------
-    def _timed_cartesian(self, curve, q0, orientations, keys=None):
-        """Time a curve: start from the Cartesian guess, stretch until the joints keep their limits."""
+    def _timed_cartesian(self, curve, q0, orientations, keys=None, ends=(0.0, 0.0), rest=None):
+        """Time a curve: start from the Cartesian guess, stretch until the joints keep their limits.
+
+        ``ends``: the progress speed at the start and at the end, as fractions of the
+        fastest progress that keeps the joint limits from rest to rest (``optimal``
+        profile only): a line entered or left at speed, blended with the joint move
+        before or after it. The joint trajectory then starts (ends) with the
+        velocity and acceleration of the moving path. ``rest``: the same curve's
+        rest-to-rest path, if already timed (else timed here first).
+        """
         s = self.settings
         length = curve.length
         limits = None
@@ -372,12 +383,35 @@ class Planner:
             guess = max(geometry.optimal_progress(limits).duration, 0.2)
         else:
             guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
-        T = s.duration or guess
+        moving = tuple(float(f) > 0.0 for f in ends)
+        if any(moving):
+            if s.cartesian_profile != 'optimal' or s.duration:
+                raise ValueError('a line or arc entered or left at speed needs cartesian_profile optimal and no '
+                                 'fixed duration')
+            if not all(0.0 <= float(f) < 1.0 for f in ends):
+                raise ValueError(f'end speeds must be fractions in [0, 1), got {list(ends)}')
+            # The rest-to-rest timing gives the progress limits that keep the joints' (its
+            # profile stretched k times is the time-optimal one within limits / k, / k^2, / k^3).
+            if rest is None:
+                _, rest = self._timed_cartesian(curve, q0, orientations, keys)
+            k = rest.duration / geometry.optimal_progress(limits).duration
+            limits = limits / np.array([k, k * k, k ** 3])
+            shape = trajectory.time_optimal([0.0], [1.0], *limits, v0=[ends[0] * limits[0]],
+                                            vf=[ends[1] * limits[0]])
+            if shape.sample(np.linspace(0.0, shape.duration, 200))[1].min() < -1e-9:
+                raise Unreachable(f'entered at {ends[0]:.0%} of its speed the path overshoots its end')
+            T = shape.duration
+        else:
+            shape = None
+            T = s.duration or guess
         for _ in range(6):
-            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations, keys=keys,
-                                                limits=limits)
+            if shape is None:
+                path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations,
+                                                    keys=keys, limits=limits)
+            else:
+                path = geometry.CartesianPath(curve, shape.stretched(T / shape.duration), orientations, keys)
             jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
-                                    check_limits=False)
+                                    check_limits=False, free_ends=moving)
             over = max(float(np.max(jp.peak_velocity / self._vmax)),
                        float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
             t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
@@ -399,17 +433,19 @@ class Planner:
             T *= over * STRETCH_MARGIN
         raise Unreachable('could not time the Cartesian path within the joint limits')
 
-    def line(self, q0, T_start, T_goal):
-        """Straight tool line from ``T_start`` to ``T_goal`` with slerped orientation."""
+    def line(self, q0, T_start, T_goal, ends=(0.0, 0.0), rest=None):
+        """Straight tool line from ``T_start`` to ``T_goal`` with slerped orientation
+        (``ends``, ``rest``: see :meth:`_timed_cartesian`)."""
         self.arm.check_reachable(T_goal, seed=q0)
         line = geometry.Line(T_start[:3, 3], T_goal[:3, 3])
         rots = Rotation.from_matrix(np.stack([T_start[:3, :3], T_goal[:3, :3]]))
         if self.arm.dof < 6:
             rots = None
-        return self._timed_cartesian(line, q0, rots)
+        return self._timed_cartesian(line, q0, rots, ends=ends, rest=rest)
 
-    def arc(self, q0, T1, T2, T3):
-        """Tool arc from ``T1`` (the current pose) through ``T2`` to ``T3`` (Sec. 2.3)."""
+    def arc(self, q0, T1, T2, T3, ends=(0.0, 0.0), rest=None):
+        """Tool arc from ``T1`` (the current pose) through ``T2`` to ``T3`` (Sec. 2.3)
+        (``ends``, ``rest``: see :meth:`_timed_cartesian`)."""
         for T in (T2, T3):
             self.arm.check_reachable(T, seed=q0)
         curve = geometry.Arc.through(T1[:3, 3], T2[:3, 3], T3[:3, 3])
@@ -421,7 +457,7 @@ class Planner:
             p = curve.points(2001)
             keys = [0.0, float(np.argmin(np.linalg.norm(p - T2[:3, 3], axis=1)) / 2000), 1.0]
             keys[1] = min(max(keys[1], 1e-3), 1 - 1e-3)
-        return self._timed_cartesian(curve, q0, rots, keys)
+        return self._timed_cartesian(curve, q0, rots, keys, ends, rest)
 
     # -- path goals -------------------------------------------------------------------------
     def plan_path(self, start, poses, method=None):
@@ -467,15 +503,19 @@ class Planner:
             cart.append((len(parts) - 1, path))
         return self._join(parts, method, cart)
 
-    def _via(self, qs, method):
+    def _via(self, qs, method, start=None, end=None):
         """Joint via points timed from the limits, stretched until feasible.
 
         Each segment starts from the rest-to-rest time of its slowest joint (60 % of
         it for via-point LSPB, which passes its via points at speed); the durations
-        then grow by 4 % until the blends fit and every limit holds.
+        then grow by 4 % until the blends fit and every limit holds. ``start`` and
+        ``end``: ``(velocity, acceleration)`` at the first and last point, ``optimal`` only
+        (default at rest).
         """
         if method == 'optimal':
-            return self._optimal_via(np.asarray(qs, float))
+            return self._optimal_via(np.asarray(qs, float), start, end)
+        if start is not None or end is not None:
+            raise ValueError('only optimal via points start or end moving')
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
         durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
         if method == 'via_lspb' and len(durations) > 1:
@@ -496,7 +536,7 @@ class Planner:
                 durations = durations * 1.04
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')
 
-    def _optimal_via(self, qs):
+    def _optimal_via(self, qs, start=None, end=None):
         """Jerk-limited, time-optimal segments through via points, passed at speed.
 
         A joint passes a via point at a multiple of the mean of its neighbouring
@@ -506,8 +546,9 @@ class Planner:
         itself is often too slow: a transfer's via point cost 0.1 s over the direct
         move at 1x, nothing at 2x).
         """
+        (v0, a0), (vf, af) = start or (None, None), end or (None, None)
         if len(qs) == 2:
-            return self.joint_move(qs[0], qs[1], 'optimal')
+            return self.joint_move(qs[0], qs[1], 'optimal', v0=v0, a0=a0, vf=vf, af=af)
         chords = np.array([self.shortest_duration(a, b, 'lspb') for a, b in zip(qs[:-1], qs[1:])])
         slopes = np.diff(qs, axis=0) / chords[:, None]
         onward = np.sign(slopes[:-1]) == np.sign(slopes[1:])
@@ -516,9 +557,12 @@ class Planner:
         for scale in VIA_SPEEDS:
             v = np.zeros_like(qs)
             v[1:-1] = np.clip(scale * mean, -self._vmax, self._vmax)
+            a = np.zeros_like(qs)
+            for i, vi, ai in ((0, v0, a0), (-1, vf, af)):
+                v[i], a[i] = (0.0 if vi is None else vi), (0.0 if ai is None else ai)
             try:
-                parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], None,
-                                                 v[i + 1], None) for i in range(len(qs) - 1)]
+                parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], a[i],
+                                                 v[i + 1], a[i + 1]) for i in range(len(qs) - 1)]
             except ValueError as exc:
                 error = exc
                 continue

@@ -9,6 +9,7 @@ from ruckig import InputParameter, Ruckig, Trajectory  # noqa: E402
 
 from picking_planner import trajectory  # noqa: E402
 from picking_planner.kinematics import Unreachable, pose_matrix  # noqa: E402
+from picking_planner.kinematics.paths import check_joint_limits  # noqa: E402
 from picking_planner.pick_cycle import PickCycle, PickSettings  # noqa: E402
 from picking_planner.planning import Planner, PlannerSettings  # noqa: E402
 
@@ -95,6 +96,66 @@ def test_table1_cycle_with_optimal_segments_keeps_the_jerk_limits(arm):
     paper = PickCycle(Planner(arm, PlannerSettings(speed_scale=1.0)), PickSettings().validate(arm)).plan(
         (HOME, Z, Z), APPLE)
     assert not _jerk_ok(arm, paper)                        # the paper's LSPB segments do not keep them
+
+
+def _optimal_cycle(arm, blend, lift_method='line'):
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
+                                           limit_jerk=True, cartesian_profile='optimal'))
+    settings = PickSettings(approach_method='optimal', transfer_method='optimal', blend=blend,
+                            lift_method=lift_method).validate(arm)
+    return PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)
+
+
+@pytest.mark.parametrize('lift_method', ['line', 'arc'])
+def test_a_blended_cycle_passes_p1_p3_p4_at_speed_on_the_same_lines_within_every_limit(arm, lift_method):
+    stopping, blended = _optimal_cycle(arm, False, lift_method), _optimal_cycle(arm, True, lift_method)
+    assert blended.duration < stopping.duration - 0.3
+    assert _jerk_ok(arm, blended)
+    t = np.linspace(0.0, blended.duration, 20_000)
+    check_joint_limits(arm, t, *blended.trajectory.sample(t)[:3], names=list(blended.joint_names))
+    seg = {s.label: s for s in blended.segments}
+    for label in ('P2 to the apple', 'P4 above the box', 'P5 into the box'):   # these start at P1, P3, P4
+        t0 = seg[label].start
+        before, after = (blended.trajectory.sample([t0 + d]) for d in (-1e-6, 1e-6))
+        assert np.abs(after[1][0]).max() > 0.3                                 # passed at speed, not stopped
+        assert after[2][0] == pytest.approx(before[2][0], abs=1e-3)            # no acceleration step
+    for label in ('grasp', 'release'):                                          # the gripper still works at rest
+        assert np.abs(blended.trajectory.sample([seg[label].start + 0.01])[1][0][:6]).max() < 1e-9
+    # The lines are the same straight lines, covered once: the tool never leaves them nor turns back.
+    for idx, path in blended.cartesian:
+        s = blended.segments[idx]
+        if 'line' not in s.method:
+            continue
+        q = blended.trajectory.sample(np.linspace(s.start, s.start + s.duration, 500))[0][:, :arm.dof]
+        p = arm.fk(q)[:, :3, 3]
+        ref = stopping.segments[idx]
+        p_ref = arm.fk(stopping.trajectory.sample([ref.start, ref.start + ref.duration])[0][:, :arm.dof])[:, :3, 3]
+        u = (p_ref[1] - p_ref[0]) / np.linalg.norm(p_ref[1] - p_ref[0])
+        along = (p - p_ref[0]) @ u
+        assert np.linalg.norm(p - p_ref[0] - along[:, None] * u, axis=1).max() < 1e-4
+        assert np.all(np.diff(along) > -1e-7) and along[0] == pytest.approx(0.0, abs=1e-6)
+        assert along[-1] == pytest.approx(np.linalg.norm(p_ref[1] - p_ref[0]), abs=1e-6)
+
+
+def test_blend_needs_the_optimal_methods(arm):
+    with pytest.raises(ValueError, match='blend needs'):
+        PickSettings(blend=True).validate(arm)
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, cartesian_profile='quintic'))
+    settings = PickSettings(approach_method='optimal', transfer_method='optimal', blend=True).validate(arm)
+    with pytest.raises(ValueError, match='cartesian_profile optimal'):
+        PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)
+
+
+def test_a_line_entered_too_fast_to_stop_at_its_end_is_refused(arm):
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, path_method='optimal', limit_jerk=True,
+                                           cartesian_profile='optimal'))
+    start = arm.fk(HOME)
+    goal = start.copy()
+    goal[2, 3] -= 0.002                                                   # 2 mm: no room to brake
+    with pytest.raises(Unreachable, match='overshoots'):
+        planner.line(HOME, start, goal, ends=(0.9, 0.0))
+    with pytest.raises(ValueError, match='fractions'):
+        planner.line(HOME, start, goal, ends=(1.5, 0.0))
 
 
 def test_limit_jerk_refuses_profiles_with_acceleration_steps(arm):

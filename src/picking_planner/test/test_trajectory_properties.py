@@ -206,3 +206,17 @@ def test_a_stretched_trajectory_takes_longer_on_the_same_path_with_scaled_deriva
     for bad in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(ValueError):
             traj.stretched(bad)
+
+
+def test_quintic_via_free_ends_take_the_moving_samples_own_velocity_and_acceleration():
+    # Samples of q = sin(2t) every 10 ms: a free end has the motion's own derivatives, a default end rests.
+    t = np.linspace(0.0, 1.0, 101)
+    q = np.sin(2.0 * t)[:, None]
+    free = trajectory.quintic_via(q, np.diff(t), free_ends=(True, True))
+    assert free.start_state()[1] == pytest.approx([2.0], abs=1e-5)
+    assert free.start_state()[2] == pytest.approx([0.0], abs=1e-3)
+    assert free.end_state()[1] == pytest.approx([2.0 * np.cos(2.0)], abs=1e-5)
+    assert free.end_state()[2] == pytest.approx([-4.0 * np.sin(2.0)], rel=2e-3)
+    half = trajectory.quintic_via(q, np.diff(t), free_ends=(False, True))
+    assert half.start_state()[1] == pytest.approx([0.0]) and half.start_state()[2] == pytest.approx([0.0])
+    assert half.end_state()[1] == pytest.approx([2.0 * np.cos(2.0)], abs=1e-5)

@@ -67,7 +67,7 @@ class JointPath:
 
 
 def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_threshold=1e-3,
-                       check_limits=True):
+                       check_limits=True, free_ends=(False, False)):
     """Joint trajectory that moves the tool along ``path``.
 
     Parameters
@@ -86,6 +86,10 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
         Smallest accepted singular value of the Jacobian.
     check_limits : bool
         Refuse paths whose joint velocity or acceleration breaks the arm's limits.
+    free_ends : (bool, bool)
+        The path starts, ends, moving (a progress that does not start or end at
+        rest): the joint spline takes its own velocity and acceleration there
+        instead of rest (see :func:`trajectory.quintic_via`).
 
     Raises
     ------
@@ -108,7 +112,8 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
         raise Unreachable(f'path fails at t = {t[worst]:.3f} s (tool at '
                           f'{np.round(poses[worst, :3, 3], 4).tolist()} m): singular: the Jacobian\'s '
                           f'smallest singular value is {sigma[worst]:.2e} (threshold {singular_threshold})')
-    traj = trajectory.quintic_via(q, np.diff(t)) if n > 2 else trajectory.quintic(q[0], q[-1], path.duration)
+    traj = (trajectory.quintic_via(q, np.diff(t), free_ends=free_ends) if n > 2
+            else trajectory.quintic(q[0], q[-1], path.duration))
     # Deviation between samples, where the spline is not pinned by IK.
     t_mid = np.sort(np.concatenate([t, 0.5 * (t[1:] + t[:-1]), 0.25 * t[1:] + 0.75 * t[:-1]]))
     q_mid, qd, qdd = traj.sample(t_mid)

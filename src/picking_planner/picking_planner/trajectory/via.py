@@ -23,7 +23,7 @@ def _per_point(values, name, shape):
     return arr
 
 
-def quintic_via(points, durations, velocities=None, accelerations=None):
+def quintic_via(points, durations, velocities=None, accelerations=None, free_ends=(False, False)):
     """Quintic segments through via points, exact at every point (Sec. 3.1 D).
 
     Parameters
@@ -41,6 +41,10 @@ def quintic_via(points, durations, velocities=None, accelerations=None):
         Acceleration at each via point. When omitted with velocities given,
         the ends get zero and interior points the central difference of the
         given velocities.
+    free_ends : (bool, bool)
+        Without velocities: the start, the end, not at rest. Such an end takes
+        the spline's own velocity and acceleration (not-a-knot end condition):
+        what a path sampled while moving through its end point has there.
 
     Returns
     -------
@@ -52,10 +56,14 @@ def quintic_via(points, durations, velocities=None, accelerations=None):
     td = as_durations(durations, m)
     times = np.concatenate(([0.0], np.cumsum(td)))
     if velocities is None:
-        spline = CubicSpline(times, points, bc_type='clamped', axis=0)
+        rest = (1, np.zeros(points.shape[1]))
+        free = tuple(bool(f) and m > 1 for f in free_ends)     # not-a-knot needs 3 points or more
+        spline = CubicSpline(times, points, bc_type=tuple('not-a-knot' if f else rest for f in free), axis=0)
         vel = spline(times, 1)
         acc = spline(times, 2)
-        acc[[0, -1]] = 0.0
+        for end, f in zip((0, -1), free):
+            if not f:
+                acc[end] = 0.0
     else:
         vel = _per_point(velocities, 'velocities', points.shape)
         acc = np.zeros_like(points)
