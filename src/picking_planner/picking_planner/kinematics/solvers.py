@@ -14,6 +14,7 @@ used only after a self-test against forward kinematics when the arm is loaded.
 from __future__ import annotations
 
 import functools
+import warnings
 
 import numpy as np
 
@@ -138,11 +139,16 @@ class _ClosedForm:
         """The compiled single-pose solve, ``f(pose, seed, q_out) -> status`` (:mod:`.fast_ik`).
 
         Loaded on first use, and used only if it gives the vectorised path's solutions
-        for the self-test poses (seeded off their configurations). None without numba.
+        for the self-test poses (seeded off their configurations). None without numba,
+        or (with a warning) if numba cannot compile or cache it here.
         """
         try:
             from . import fast_ik
         except ImportError:
+            return None
+        except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: the vectorised path answers
+            warnings.warn(f'the compiled single-pose IK did not load ({type(exc).__name__}: {exc}); '
+                          'IK runs the vectorised closed form', RuntimeWarning, stacklevel=2)
             return None
         solve = fast_ik.bind(self)
         Q, T = self._test_poses()
