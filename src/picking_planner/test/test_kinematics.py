@@ -182,9 +182,9 @@ def test_cartesian_path_too_fast_breaks_a_velocity_limit(arm):
 
 
 @pytest.mark.parametrize('fixture', ['arm', 'arm3'])
-def test_compiled_single_pose_ik_agrees_with_the_batched_solver(fixture, request):
+def test_compiled_ik_agrees_with_the_vectorised_closed_form(fixture, request):
     model = request.getfixturevalue(fixture)
-    assert model.load_ik(), 'the compiled single-pose IK did not load (numba is a requirement)'
+    assert model.load_ik(), 'the compiled IK did not load (numba is a requirement)'
     rng = np.random.default_rng(6)
     n = 10_000
     Q = rng.uniform(model.lower, model.upper, (n, model.dof))
@@ -193,11 +193,14 @@ def test_compiled_single_pose_ik_agrees_with_the_batched_solver(fixture, request
     T = model.fk(Q)
     T[-n // 10:, :3, 3] *= 1.6                                 # many out of reach
     seeds = Q + rng.normal(0.0, 1.0, Q.shape)                  # far seeds, some beyond the limits
-    batched, ok, reasons = model.ik_batch(T, seeds)
+    expected, ok, reasons = model._solver.solve(T, seeds)      # the vectorised closed form
     assert 0.5 < ok.mean() < 0.95
+    batched, batch_ok, batch_reasons = model.ik_batch(T, seeds)
+    assert np.array_equal(batch_ok, ok) and batch_reasons == reasons
+    assert batched[ok] == pytest.approx(expected[ok], abs=1e-9) and np.isnan(batched[~ok]).all()
     for i in range(n):
         if ok[i]:
-            assert model.ik(T[i], seeds[i]) == pytest.approx(batched[i], abs=1e-9)
+            assert model.ik(T[i], seeds[i]) == pytest.approx(expected[i], abs=1e-9)
         else:
             with pytest.raises(Unreachable, match=reasons[i].split(':')[0]):
                 model.ik(T[i], seeds[i])
@@ -213,7 +216,10 @@ def test_compiled_ik_takes_any_array_without_compiling_again(arm):
     assert arm.ik(T, seed) == pytest.approx(q_true, abs=1e-9)
     assert arm.ik(T, [0, 0, 1, 0, 1, 0]) is not None
     assert arm.ik(T.tolist(), tuple(seed)) == pytest.approx(q_true, abs=1e-9)
-    assert len(arm._solver.compiled.func.signatures) == 1
+    q, ok, _ = arm.ik_batch(np.stack([T, T]), seed)            # a read-only seed broadcast to both
+    assert ok.all() and q == pytest.approx(np.stack([q_true, q_true]), abs=1e-9)
+    compiled = arm._solver.compiled
+    assert len(compiled.one.func.signatures) == len(compiled.many.func.signatures) == 1
 
 
 def test_ik_without_numba_runs_the_vectorised_solver(arm, monkeypatch):

@@ -1,10 +1,10 @@
-"""The closed-form IK of one pose, compiled: the single-pose fast path of :meth:`ArmModel.ik`.
+"""The closed-form IK, compiled: the fast path of :meth:`ArmModel.ik` and :meth:`ArmModel.ik_batch`.
 
 The same solutions as the vectorised closed forms of :mod:`.solvers` (every
 branch, each joint moved to its 2 pi image nearest the seed within the limits,
 the valid solution nearest the seed), in one compiled function: the pose and
 seed checks, the 4 arm branches and the 2 wrist flips of each run without a
-Python object in between. numba compiles it when this module is first imported
+Python object in between; :func:`solve_many` runs it over a batch. numba compiles it when this module is first imported
 (about 2 s) and keeps the machine code in its cache beside this file
 (``__pycache__``), so later processes load it in a fraction of a second; ``make``
 builds that cache when it installs.
@@ -44,9 +44,14 @@ def pack(solver):
     return geometry, tool_inv, limits
 
 
-def bind(solver):
-    """``solve`` for this solver's arm: ``f(pose, seed, q_out) -> status``."""
-    return functools.partial(solve, *pack(solver))
+class Bound:
+    """The kernels bound to one arm: ``one(pose, seed, q_out) -> status`` and
+    ``many(poses, seeds, q_out, status_out)``."""
+
+    def __init__(self, solver):
+        model = pack(solver)
+        self.one = functools.partial(solve, *model)
+        self.many = functools.partial(solve_many, *model)
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
@@ -176,3 +181,11 @@ def solve(geometry, tool_inv, limits, pose, seed, q_out):
                     for j in range(6):
                         q_out[j] = cand[j]
     return OK if best < math.inf else BEYOND_LIMITS
+
+
+@njit('void(float64[::1], float64[:, ::1], float64[:, ::1], float64[:, :, ::1], float64[:, ::1], float64[:, ::1], '
+      'int64[::1])', cache=True, nogil=True, error_model='numpy')
+def solve_many(geometry, tool_inv, limits, poses, seeds, q_out, status_out):
+    """:func:`solve` for every pose ``poses[i]`` from ``seeds[i]`` into ``q_out[i]``, ``status_out[i]``."""
+    for i in range(poses.shape[0]):
+        status_out[i] = solve(geometry, tool_inv, limits, poses[i], seeds[i], q_out[i])

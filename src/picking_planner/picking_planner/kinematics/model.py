@@ -300,7 +300,7 @@ class ArmModel:
             q0 = self._seed(None) if seed is None else _plain_floats(seed)
             if pose.shape == (4, 4) and q0.shape == (self.dof,):
                 q = np.empty(self.dof)
-                if compiled(pose, q0, q) == 0:
+                if compiled.one(pose, q0, q) == 0:
                     return q
         # Without the compiled path, or to say why it failed: the vectorised solver.
         T, seed = _check_pose(T), self._seed(seed)
@@ -310,9 +310,9 @@ class ArmModel:
         return q[0]
 
     def load_ik(self):
-        """Load the compiled single-pose IK now (else the first :meth:`ik` call does).
+        """Load the compiled IK now (else the first :meth:`ik` or :meth:`ik_batch` call does).
 
-        Returns True if :meth:`ik` runs compiled, False if it runs the vectorised
+        Returns True if they run compiled, False if they run the vectorised
         solver (numba missing, or an arm without a closed form).
         """
         return self._solver.compiled is not None
@@ -337,7 +337,20 @@ class ArmModel:
         if T.ndim != 3 or T.shape[1:] != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError('T must be a finite array of poses, shape (N, 4, 4)')
         seed = np.broadcast_to(self._seed(seed), (T.shape[0], self.dof))
-        return self._solver.solve(T, seed)
+        compiled = self._solver.compiled
+        if compiled is None:
+            return self._solver.solve(T, seed)
+        q, status = np.empty((T.shape[0], self.dof)), np.empty(T.shape[0], dtype=np.int64)
+        compiled.many(_plain_floats(T), _plain_floats(seed), q, status)
+        ok = status == 0
+        reasons = [''] * len(T)
+        failed = np.flatnonzero(~ok)
+        if failed.size:
+            # The vectorised solver says why (and answers as it would for poses the kernel refuses).
+            q[failed], ok[failed], why = self._solver.solve(T[failed], seed[failed])
+            for i, reason in zip(failed, why):
+                reasons[i] = reason
+        return q, ok, reasons
 
     def _seed(self, seed):
         if seed is None:

@@ -136,7 +136,7 @@ class _ClosedForm:
 
     @functools.cached_property
     def compiled(self):
-        """The compiled single-pose solve, ``f(pose, seed, q_out) -> status`` (:mod:`.fast_ik`).
+        """The compiled solver bound to this arm (:class:`.fast_ik.Bound`: ``one`` pose, ``many``).
 
         Loaded on first use, and used only if it gives the vectorised path's solutions
         for the self-test poses (seeded off their configurations). None without numba,
@@ -147,19 +147,25 @@ class _ClosedForm:
         except ImportError:
             return None
         except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: the vectorised path answers
-            warnings.warn(f'the compiled single-pose IK did not load ({type(exc).__name__}: {exc}); '
+            warnings.warn(f'the compiled IK did not load ({type(exc).__name__}: {exc}); '
                           'IK runs the vectorised closed form', RuntimeWarning, stacklevel=2)
             return None
-        solve = fast_ik.bind(self)
+        bound = fast_ik.Bound(self)
         Q, T = self._test_poses()
+        T = np.ascontiguousarray(T)
         seeds = np.roll(Q, 1, axis=0)
         expected, ok, _ = self.solve(T, seeds)
-        q = np.empty(self.arm.dof)
+        q, status = np.empty_like(Q), np.empty(len(T), dtype=np.int64)
+        bound.many(T, seeds, q, status)
+        one = np.empty(self.arm.dof)
         for i in range(len(T)):
-            status = solve(T[i], seeds[i], q)
-            if (status == fast_ik.OK) != ok[i] or (ok[i] and not np.allclose(q, expected[i], atol=1e-9)):
+            agree = [(s == fast_ik.OK) == ok[i] and (not ok[i] or np.allclose(x, expected[i], atol=1e-9))
+                     for s, x in ((bound.one(T[i], seeds[i], one), one), (status[i], q[i]))]
+            if not all(agree):
+                warnings.warn('the compiled IK disagrees with the vectorised closed form on its self-test: '
+                              'IK runs the vectorised closed form', RuntimeWarning, stacklevel=2)
                 return None
-        return solve
+        return bound
 
     def solve(self, T, seed):
         cand, reach_ok = self.candidates(T, seed)                     # (N, B, dof)
