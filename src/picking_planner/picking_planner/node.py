@@ -45,8 +45,10 @@ BURST = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: s a plan must leave between the end of planning and its start: sending it, and the
 #: controller's checks (a few ms per hundred points).
 DELIVERY = 0.08
-#: s a first goal of a kind is expected to take to plan (later ones: what the last took).
-FIRST_PLANNING = 0.05
+#: s a first goal of a kind is expected to take to plan (later ones: what the last took). A plan
+#: that ends too late to start on time is planned again further ahead, so a guess too short
+#: costs a second planning: a pick cycle (about ten lines and moves) takes 0.1-0.4 s here.
+FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4}
 #: rad: the controller's reference is following our last plan when within this of it.
 FOLLOWING = 1e-3
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
@@ -350,7 +352,7 @@ class PlannerNode(Node):
                 # goal took that long last time), stamped so; it must be planned with at least
                 # DELIVERY s to spare for sending and for the controller, else planned again
                 # further ahead.
-                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, FIRST_PLANNING)
+                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, FIRST_PLANNING[kind])
                 ref = self._reference()
                 for _ in range(4):
                     start, source, t_start = self.start_state(delay, ref, measured)
