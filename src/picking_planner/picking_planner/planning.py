@@ -519,8 +519,15 @@ class Planner:
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
         durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
         if method == 'via_lspb' and len(durations) > 1:
-            # Interior via points are passed at speed, not stopped at: start from 60 %.
-            durations *= 0.6
+            # Interior via points are passed at speed, not stopped at: start from 60 %, but not
+            # below what any timing needs: no segment faster than the speed limit on average,
+            # and the first and last long enough to blend from and to rest at the acceleration
+            # used (T^2 >= 2 |dq| / a, the root of the blend time).
+            dq = np.abs(np.diff(qs, axis=0))
+            need = np.max(dq / self._vmax, axis=1)
+            for k in (0, -1):
+                need[k] = max(need[k], float(np.max(np.sqrt(2.0 * dq[k] / self._amax))))
+            durations = np.maximum(0.6 * durations, need)
         durations = np.maximum(durations, 2 * self.settings.sample_period)
         last = None
         for _ in range(60):
