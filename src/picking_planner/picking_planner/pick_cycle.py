@@ -70,7 +70,8 @@ class PickSettings:
     blend : bool
         Pass P1, P3 and P4 at speed instead of stopping there: the approach flows into
         the line to the apple, the lift into the transfer, the transfer into the line
-        into the box (each at the fastest of BLEND_SPEEDS, the lines still straight).
+        into the box, and the way back rises straight out of the box (a line to P4) into
+        the move home (each junction at the quickest of BLEND_SPEEDS, the lines straight).
         Needs the ``optimal`` approach and transfer methods and the planner's
         ``cartesian_profile: optimal`` (jerk-limited: the joints' velocity and
         acceleration stay continuous through the blends).
@@ -225,7 +226,16 @@ class PickCycle:
         add('P5 into the box', 'line', traj, path)
         q_box = traj.end_state()[0]
         add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
-        add('P0 back home', s.transfer_method, pl._via(np.array([q_box, q['P4'], home]), s.transfer_method))
+        if s.blend:
+            # Straight up out of the box (the way in, reversed), flowing into the move home.
+            back, (traj, path) = self._quickest(
+                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q['P4']), (0.0, f), rest),
+                lambda line: pl.joint_move(line[0].end_state()[0], home, 'optimal',
+                                           **dict(zip(('v0', 'a0'), moving(line[0], -1)))))
+            add('P4 out of the box', 'line', traj, path)
+            add('P0 back home', s.transfer_method, back)
+        else:
+            add('P0 back home', s.transfer_method, pl._via(np.array([q_box, q['P4'], home]), s.transfer_method))
 
         plan = pl._join(parts, 'pick', cart)
         gripper, events = self._gripper(plan, gripper_start)
