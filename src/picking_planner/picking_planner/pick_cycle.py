@@ -192,48 +192,53 @@ class PickCycle:
             add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
         speeds = BLEND_SPEEDS if s.blend else (0.0,)
 
-        def moving(traj, end):
-            """Velocity and acceleration where ``traj`` starts (end=0) or ends (-1), for a blend."""
-            state = traj.start_state() if end == 0 else traj.end_state()
-            return state[1:] if s.blend else (None, None)
+        def blend_state(traj, at_end):
+            """``(velocity, acceleration)`` where a blend meets ``traj`` (its end or start); None without."""
+            if not s.blend:
+                return None
+            return (traj.end_state() if at_end else traj.start_state())[1:]
+
+        def approach(line):
+            """Home -> the start of the line to the apple."""
+            vf, af = blend_state(line, False) or (None, None)
+            return pl.joint_move(home, line.start_state()[0], joint_method, vf=vf, af=af)
 
         def transfer(lift, into_box=None):
-            """Lift end -> clearance -> P4 (the start of the line into the box, if planned)."""
+            """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
             q_lift = lift.end_state()[0]
-            q_box = into_box.start_state()[0] if into_box is not None else q['P4']
+            q_box = q['P4'] if into_box is None else into_box.start_state()[0]
             return pl._via(np.array([q_lift, self._clearance(q_lift, q_box), q_box]), s.transfer_method,
-                           moving(lift, -1) if s.blend else None,
-                           moving(into_box, 0) if s.blend and into_box is not None else None)
+                           blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
+
+        def home_from(rise):
+            """The end of the line out of the box -> home."""
+            v0, a0 = blend_state(rise, True)
+            return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
 
         # P1: the approach ends where (and as fast as) the line to the apple starts.
-        approach, (traj, path) = self._quickest(
-            speeds, lambda f, rest: pl.line(q['P1'], arm.fk(q['P1']), poses['P2'], (f, 0.0), rest),
-            lambda line: pl.joint_move(home, line[0].start_state()[0], joint_method,
-                                       **dict(zip(('vf', 'af'), moving(line[0], 0)))))
-        add('P1 approach', joint_method, approach)
+        moved, (traj, path) = self._quickest(
+            speeds, lambda f, rest: pl.line(q['P1'], arm.fk(q['P1']), poses['P2'], (f, 0.0), rest), approach)
+        add('P1 approach', joint_method, moved)
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
         add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
         # P3: the lift flows into the transfer (stopping at P4 for this choice) ...
-        _, (lift, lift_path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest),
-                                              lambda line: transfer(line[0]))
-        add('P3 lift and detach', s.lift_method, lift, lift_path)
+        _, (lift, path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest), transfer)
+        add('P3 lift and detach', s.lift_method, lift, path)
         # ... and the transfer into the line into the box.
         moved, (traj, path) = self._quickest(
             speeds, lambda f, rest: pl.line(q['P4'], arm.fk(q['P4']), poses['P5'], (f, 0.0), rest),
-            lambda line: transfer(lift, line[0]))
+            lambda line: transfer(lift, line))
         add('P4 above the box', s.transfer_method, moved)
         add('P5 into the box', 'line', traj, path)
         q_box = traj.end_state()[0]
         add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
         if s.blend:
             # Straight up out of the box (the way in, reversed), flowing into the move home.
-            back, (traj, path) = self._quickest(
-                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q['P4']), (0.0, f), rest),
-                lambda line: pl.joint_move(line[0].end_state()[0], home, 'optimal',
-                                           **dict(zip(('v0', 'a0'), moving(line[0], -1)))))
+            moved, (traj, path) = self._quickest(
+                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q['P4']), (0.0, f), rest), home_from)
             add('P4 out of the box', 'line', traj, path)
-            add('P0 back home', s.transfer_method, back)
+            add('P0 back home', s.transfer_method, moved)
         else:
             add('P0 back home', s.transfer_method, pl._via(np.array([q_box, q['P4'], home]), s.transfer_method))
 
@@ -248,16 +253,16 @@ class PickCycle:
 
         ``cartesian(f, rest)`` plans the line (or arc) at speed fraction ``f`` where it
         meets the joint move (``rest``: its path from rest to rest, None for that one
-        itself); ``joint(line)`` plans the move that meets it. The first speed (rest)
-        must work; a faster one is skipped where it cannot (entering too fast to stop
-        in time, or a joint state the move cannot reach within the limits).
+        itself); ``joint(trajectory)`` plans the move that meets it. The first speed
+        (rest) must work; a faster one is skipped where it cannot (entering too fast to
+        stop in time, or a joint state the move cannot reach within the limits).
         """
         line = cartesian(speeds[0], None)
-        best, rest = (joint(line), line), line[1]
+        best, rest = (joint(line[0]), line), line[1]
         for f in speeds[1:]:
             try:
                 line = cartesian(f, rest)
-                move = joint(line)
+                move = joint(line[0])
             except (ValueError, Unreachable):
                 continue
             if move.duration + line[0].duration < best[0].duration + best[1][0].duration:
