@@ -142,6 +142,28 @@ def test_malformed_goal_is_refused_with_the_reason_and_the_arm_stays(arm1, topic
     assert np.abs(client.last_positions() - before).max() < 1e-4
 
 
+def test_a_blended_jerk_limited_pick_cycle_set_at_run_time(arm1):
+    """The cycle's parameters set through the parameter service, as a user would: `blend` is refused until the
+    methods it needs are set, then the planner passes P1, P3 and P4 at speed and the cycle is reached."""
+    _, client = arm1
+    with pytest.raises(AssertionError, match='blend needs'):
+        client.set_planner_parameter('blend', True)
+    changes = [('approach_method', 'optimal', 'lspb'), ('transfer_method', 'optimal', 'via_lspb'),
+               ('cartesian_profile', 'optimal', 'quintic'), ('blend', True, False)]
+    apple = _pose_goal([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])
+    try:
+        for name, value, _ in changes:
+            client.set_planner_parameter(name, value)
+        answer = reach(client, lambda: client.send(client.pub_pick, apple), timeout=60.0)
+    finally:
+        for name, _, default in reversed(changes):
+            client.set_planner_parameter(name, default)
+    segments = status_values(answer)['segments']
+    for part in ('P1 approach: optimal', 'P2 to the apple: line', 'P4 above the box: optimal',
+                 'P5 into the box: line', 'P4 out of the box: line', 'P0 back home: optimal'):
+        assert part in segments, segments
+
+
 def _trajectory(names, points):
     msg = JointTrajectory()
     msg.joint_names = names
