@@ -170,6 +170,28 @@ def test_sample_shapes_and_holding_outside_the_trajectory():
     assert seg.sample(0.5)[0].shape == (1, 3)
 
 
+
+@pytest.mark.parametrize('make', [
+    lambda: trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0).shifted(0.3),      # one segment
+    lambda: trajectory.lspb([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0, 6.0),               # a few segments
+    lambda: trajectory.quintic_via(np.sin(np.arange(40.0))[:, None] * [1.0, 2.0, -1.0],  # many: gathered
+                                   np.full(39, 0.05)),
+])
+@pytest.mark.parametrize('n', [5, 20_001, 40_000])
+def test_long_unsorted_samplings_match_one_time_at_a_time(make, n):
+    """Many cache-sized chunks, times out of order and beyond both ends: each sample is
+    exactly what the trajectory gives at that one time."""
+    traj = make()
+    rng = np.random.default_rng(n)
+    t = rng.uniform(traj.start_time - 0.5, traj.end_time + 0.5, n)
+    t[:3] = traj.start_time - 1.0, traj.end_time + 1.0, traj.breaks[len(traj.breaks) // 2]
+    q, qd, qdd = traj.sample(t)
+    for i in rng.choice(n, 200 if n > 200 else n, replace=False).tolist() + [0, 1, 2]:
+        want = traj.state_at(float(t[i]))
+        for got, w in zip((q[i], qd[i], qdd[i]), want):
+            assert got == pytest.approx(w, rel=1e-12, abs=1e-9)
+    assert np.all(qd[t > traj.end_time] == 0.0) and np.all(qdd[t < traj.start_time] == 0.0)
+
 def test_concatenate_composes_segments_and_refuses_a_gap():
     a = trajectory.cubic(0.0, 1.0, 1.0)
     b = trajectory.hold(1.0, 0.5)

@@ -58,14 +58,15 @@ def as_duration(duration, name: str = 'duration') -> float:
 def as_time_array(t) -> np.ndarray:
     """Sample times as a finite 1-D float array."""
     try:
-        arr = np.array(t, dtype=float)
+        arr = np.asarray(t, dtype=float)            # not copied: only read
     except (TypeError, ValueError) as exc:
         raise ValueError('t must be a number or a 1-D sequence of times') from exc
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1:
         raise ValueError(f't must be a number or a 1-D sequence, got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
+    # The extremes are NaN if any time is (and infinite if any is): no mask as long as t.
+    if arr.size and not (np.isfinite(arr.min()) and np.isfinite(arr.max())):
         raise ValueError('t must be finite')
     return arr
 

@@ -34,6 +34,9 @@ _D2 = _D1[1:] * np.arange(1, _N_COEFFS - 1, dtype=float)
 # (up to this many samples at once: the gathered copy grows with both).
 _GATHER_SEGMENTS = 8
 _GATHER_SAMPLES = 20_000
+# Samples evaluated at once by one segment's matrix product: the power basis of a chunk
+# (6 x 8192 doubles, 384 KiB) stays in cache.
+_CHUNK = 8192
 
 
 class PiecewisePolynomial:
@@ -134,20 +137,21 @@ class PiecewisePolynomial:
         Notes
         -----
         Vectorised per segment, not per sample: the samples of each segment
-        are one matrix product of their power basis with the segment's
-        stacked (q, qd, qdd) coefficients. Sorted times are the fast path.
+        are matrix products of their power basis with the segment's stacked
+        (q, qd, qdd) coefficients, a cache-sized chunk at a time. Sorted times
+        are the fast path.
         """
         t = as_time_array(t)
         breaks = self._breaks
         n = self.n_joints
-        tc = np.clip(t, breaks[0], breaks[-1])
-        rows = np.empty((3 * n, tc.size))
+        rows = np.empty((3 * n, t.size))
         m = len(breaks) - 1
         if m == 1:
-            _eval_block(tc - breaks[0], self._stacked[0], rows)
-        elif m > _GATHER_SEGMENTS and tc.size <= _GATHER_SAMPLES:
+            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._rows[0], rows)
+        elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
             # batched product instead of a Python loop over the segments.
+            tc = np.clip(t, breaks[0], breaks[-1])
             k = np.clip(np.searchsorted(breaks, tc, side='left') - 1, 0, m - 1)
             tau = tc - breaks[k]
             powers = np.empty((tc.size, _N_COEFFS))
@@ -156,22 +160,24 @@ class PiecewisePolynomial:
                 np.multiply(powers[:, i - 1], tau, out=powers[:, i])
             rows = np.matmul(powers[:, None, :], self._stacked[k])[:, 0, :].T
         else:
-            order = None
-            if tc.size > 1 and np.any(tc[1:] < tc[:-1]):
-                order = np.argsort(tc, kind='stable')
-                tc = tc[order]
-            edges = np.concatenate(([0], np.searchsorted(tc, breaks[1:-1], side='right'), [tc.size]))
+            order, ts = None, t
+            if t.size > 1 and np.any(t[1:] < t[:-1]):
+                order = np.argsort(t, kind='stable')
+                ts = t[order]
+            # Times before the start fall in the first segment, after the end in the last
+            # (each block clips them to the trajectory's ends).
+            edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
             for k in np.flatnonzero(edges[1:] > edges[:-1]):
                 lo, hi = edges[k], edges[k + 1]
-                _eval_block(tc[lo:hi] - breaks[k], self._stacked[k], rows[:, lo:hi])
+                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows[:, lo:hi])
             if order is not None:
                 unsorted = np.empty_like(rows)
                 unsorted[:, order] = rows
                 rows = unsorted
         out = rows.T
         q, qd, qdd = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
-        outside = (t < breaks[0]) | (t > breaks[-1])
-        if outside.any():
+        if t.size and (t.min() < breaks[0] or t.max() > breaks[-1]):
+            outside = (t < breaks[0]) | (t > breaks[-1])
             qd[outside] = 0.0
             qdd[outside] = 0.0
         return q, qd, qdd
@@ -222,7 +228,8 @@ class PiecewisePolynomial:
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
             rows = np.empty((3 * self.n_joints, 1))
-            _eval_block(np.array([self._breaks[-1] - self._breaks[-2]]), self._stacked[-1], rows)
+            b = self._breaks
+            _eval_block(b[-1:], b[-2], b[-1], b[-2], self._rows[-1], rows)
             q, qd, qdd = np.split(rows[:, 0], 3)
             for x in (q, qd, qdd):
                 x.flags.writeable = False
@@ -263,14 +270,25 @@ def _stack_derivatives(coeffs):
     return out
 
 
-def _eval_block(tau, stacked, out):
-    """Write q, qd, qdd rows for local times ``tau`` into ``out`` (3n, len(tau))."""
-    powers = np.empty((_N_COEFFS, tau.size))
+def _eval_block(t, lo, hi, origin, rows, out):
+    """Write q, qd, qdd at times ``t`` (clipped to ``[lo, hi]``, local to ``origin``) into
+    ``out`` (3n, len(t)), from one segment's ``rows`` (3n, 6) of stacked coefficients.
+
+    A chunk at a time: each chunk's power basis stays in cache and no full-length
+    temporary is written, so a long sampling costs little more than writing its output.
+    """
+    size = t.size
+    powers = np.empty((_N_COEFFS, min(size, _CHUNK)))
     powers[0] = 1.0
-    powers[1] = tau
-    for i in range(2, _N_COEFFS):
-        np.multiply(powers[i - 1], tau, out=powers[i])
-    np.matmul(stacked.T, powers, out=out)
+    for a in range(0, size, _CHUNK):
+        b = min(a + _CHUNK, size)
+        p = powers[:, :b - a]
+        tau = p[1]
+        np.clip(t[a:b], lo, hi, out=tau)
+        tau -= origin
+        for i in range(2, _N_COEFFS):
+            np.multiply(p[i - 1], tau, out=p[i])
+        np.matmul(rows, p, out=out[:, a:b])
 
 
 def taylor_shift(coeffs, dt):
