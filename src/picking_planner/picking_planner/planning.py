@@ -41,9 +41,12 @@ DEFAULT_JERK_PER_ACCEL = 10.0
 
 #: Via-point speeds tried by the jerk-limited via timing, times the neighbouring chords' mean speed.
 VIA_SPEEDS = (1.0, 1.5, 2.0)
-#: A Cartesian path found too fast is stretched by its limit ratio times this: its joint speeds scale
-#: with 1/T, but not every part of its sampled peaks does (IK noise near a singular wrist).
+#: A Cartesian path whose check on a fine grid finds a hair beyond a limit (between the
+#: samples its peaks were measured at) is stretched by this.
 STRETCH_MARGIN = 1.05
+#: A line or arc slowed to the joint limits is slowed this much more: its peaks were measured
+#: between its IK samples (three times as densely), and may lie a hair beyond them.
+STRETCH_TIGHT = 1.001
 #: Plans use at most this fraction of the scaled limits, so that the controller's spline
 #: through the 10 ms points (which can overshoot the plan by a hair) never crosses a limit.
 PLAN_MARGIN = 0.98
@@ -404,33 +407,38 @@ class Planner:
         else:
             shape = None
             T = s.duration or guess
+        if shape is None:
+            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations,
+                                                keys=keys, limits=limits)
+        else:
+            path = geometry.CartesianPath(curve, shape.stretched(T / shape.duration), orientations, keys)
+        jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
+                                check_limits=False, free_ends=moving)
+        traj = jp.trajectory
+        over = max(float(np.max(jp.peak_velocity / self._vmax)),
+                   float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
+        if s.limit_jerk:
+            over = max(over, self._jerk_ratio(traj, np.linspace(0.0, T, max(50, int(T / 0.0025)))) ** (1.0 / 3.0))
+        # Slowed down by k, the tool passes the same poses, so the joints pass the same
+        # configurations: the joint path is this one stretched in time, its speeds divided by
+        # k, accelerations by k^2, jerks by k^3 (the spline through the IK samples stretches
+        # with them). The IK is solved once; its samples end up k * sample_period apart.
         for _ in range(6):
-            if shape is None:
-                path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations,
-                                                    keys=keys, limits=limits)
-            else:
-                path = geometry.CartesianPath(curve, shape.stretched(T / shape.duration), orientations, keys)
-            jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
-                                    check_limits=False, free_ends=moving)
-            over = max(float(np.max(jp.peak_velocity / self._vmax)),
-                       float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
-            t = np.linspace(0.0, T, max(50, int(T / 0.0025)))
-            if s.limit_jerk:
-                over = max(over, self._jerk_ratio(jp.trajectory, t) ** (1.0 / 3.0))
             if over <= 1.0:
+                t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
                 try:
-                    check_joint_limits(self.arm, t, *jp.trajectory.sample(t))
-                    return jp.trajectory, path
+                    check_joint_limits(self.arm, t, *traj.sample(t))
+                    return traj, path
                 except Unreachable:
                     if s.duration:
                         raise
-                    over = 1.0          # between the samples a hair beyond a limit: stretch a little
+                    over = STRETCH_MARGIN        # between the samples a hair beyond a limit: stretch a little
             if s.duration:
                 raise Unreachable(f'the path needs {over:.2f} times the allowed joint speed in the '
                                   f'fixed duration {s.duration} s')
-            # The curve's geometry is fixed, so its joint speeds scale with 1/T, accelerations
-            # with 1/T^2, jerks with 1/T^3: the ratio says about how much longer it must take.
-            T *= over * STRETCH_MARGIN
+            k = over * STRETCH_TIGHT
+            traj, path = traj.stretched(k), path.stretched(k)
+            over = over / k
         raise Unreachable('could not time the Cartesian path within the joint limits')
 
     def line(self, q0, T_start, T_goal, ends=(0.0, 0.0), rest=None):
@@ -533,6 +541,11 @@ class Planner:
         for _ in range(60):
             try:
                 if method == 'via_lspb':
+                    # The timing alone first (microseconds): the trajectory is built and
+                    # checked only once its blends fit and its lines keep the speed limit.
+                    _, vel = trajectory.via_lspb_timing(qs, durations, self._amax)
+                    if np.any(np.abs(vel) > self.arm.max_velocity + 1e-6):
+                        raise ValueError('a line is faster than the velocity limit')
                     traj = trajectory.via_lspb(qs, durations, self._amax)
                 else:
                     traj = trajectory.quintic_via(qs, durations)

@@ -129,3 +129,15 @@ def test_optimal_progress_within_given_limits_keeps_them_and_reaches_one():
     slower = geometry.progress_profile(2.0 * shape.duration, 'optimal', limits=limits)
     assert slower.duration == pytest.approx(2.0 * shape.duration)
     assert slower.sample(t * 2.0)[0] == pytest.approx(q)                # the same shape, stretched
+
+
+def test_a_stretched_cartesian_path_passes_the_same_poses_later():
+    arc = geometry.Arc.through((0.5, 0, 0.3), (0.6, 0.1, 0.3), (0.5, 0.2, 0.3))
+    rots = Rotation.from_euler('xyz', [[180, 0, 0], [180, 0, 90]], degrees=True)
+    path = geometry.CartesianPath.timed(arc, 1.5, 'quintic', orientations=rots)
+    slow = path.stretched(1.3)
+    t = np.linspace(0.0, 1.5, 31)
+    assert slow.duration == pytest.approx(1.95)
+    assert slow.poses(1.3 * t) == pytest.approx(path.poses(t), abs=1e-12)
+    (_, v, a), (_, v_slow, a_slow) = path.sample(t), slow.sample(1.3 * t)
+    assert v_slow == pytest.approx(v / 1.3, abs=1e-12) and a_slow == pytest.approx(a / 1.3**2, abs=1e-12)

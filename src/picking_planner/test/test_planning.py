@@ -126,6 +126,29 @@ def test_table1_cycle_visits_every_knot_point_with_the_gripper(arm, planner):
     _within_limits(arm, plan)
 
 
+def test_a_line_slowed_to_the_joint_limits_uses_them_fully_with_one_ik_pass(arm, planner, monkeypatch):
+    """A line too fast for the joints is stretched (its joint path scales exactly in time),
+    not re-solved with a safety margin: its fastest joint reaches the plan's limit."""
+    import picking_planner.planning as planning
+    passes = []
+    solve = planning.cartesian_to_joint
+    monkeypatch.setattr(planning, 'cartesian_to_joint', lambda *a, **k: passes.append(1) or solve(*a, **k))
+    start = (HOME, Z, Z)
+    goal = pose_matrix([0.55, 0.05, 0.35], DOWN)
+    fast = Planner(arm, PlannerSettings(speed_scale=1.0, method='line', cartesian_speed=1.5, cartesian_accel=15.0))
+    plan = fast.plan_pose(start, goal)
+    assert len(passes) == 1
+    _within_limits(arm, plan)
+    t = np.linspace(0.0, plan.duration, 4000)
+    _, qd, qdd = plan.trajectory.sample(t)
+    use = max(np.max(np.abs(qd) / fast._vmax), np.sqrt(np.max(np.abs(qdd) / fast._amax)))
+    assert 0.99 <= use <= 1.0 + 1e-3
+    tool = arm.fk(plan.trajectory.sample(t[::40])[0])[:, :3, 3]
+    along = (tool - tool[0]) @ (tool[-1] - tool[0]) / np.linalg.norm(tool[-1] - tool[0]) ** 2
+    off = tool - tool[0] - along[:, None] * (tool[-1] - tool[0])
+    assert np.abs(off).max() < 1e-4                                  # still a straight line
+
+
 def test_table1_cycle_with_an_arc_lift(arm, planner):
     settings = PickSettings(lift_method='arc').validate(arm)
     plan = PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)

@@ -242,3 +242,21 @@ def test_quintic_via_free_ends_take_the_moving_samples_own_velocity_and_accelera
     half = trajectory.quintic_via(q, np.diff(t), free_ends=(False, True))
     assert half.start_state()[1] == pytest.approx([0.0]) and half.start_state()[2] == pytest.approx([0.0])
     assert half.end_state()[1] == pytest.approx([2.0 * np.cos(2.0)], abs=1e-5)
+
+
+@given(via_paths(), st.floats(0.5, 50.0))
+@settings(deadline=None)
+def test_via_lspb_timing_is_the_trajectorys_without_building_it(path, accel):
+    """The planner searches durations with the timing alone: the same blends and line
+    speeds as the trajectory, the same refusal, and no faster point than its lines."""
+    points, durations = path
+    try:
+        traj = trajectory.via_lspb(points, durations, accel)
+    except ValueError as exc:
+        with pytest.raises(ValueError, match=str(exc)[:20]):
+            trajectory.via_lspb_timing(points, durations, accel)
+        return
+    blends, velocities = trajectory.via_lspb_timing(points, durations, accel)
+    assert np.array_equal(blends, traj.blend_times) and np.array_equal(velocities, traj.segment_velocities)
+    qd = traj.sample(np.linspace(0.0, traj.duration, 2001))[1]
+    assert np.all(np.abs(qd).max(axis=0) <= np.abs(velocities).max(axis=0) * (1 + 1e-9) + 1e-12)

@@ -123,6 +123,13 @@ class CartesianPath:
     def duration(self) -> float:
         return self.profile.duration
 
+    def stretched(self, factor):
+        """The same path traversed ``factor`` times as slowly (the same poses, later)."""
+        out = object.__new__(CartesianPath)
+        out.curve, out.profile, out._slerp, out._fixed = self.curve, self.profile.stretched(factor), \
+            self._slerp, self._fixed
+        return out
+
     def sample(self, t):
         """Tool position, velocity and acceleration at times ``t``.
 

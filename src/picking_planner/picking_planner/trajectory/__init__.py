@@ -9,7 +9,7 @@ extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
 ``(len(t), n_joints)``.
 """
 
-from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb
+from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb, via_lspb_timing
 from .piecewise import PiecewisePolynomial, concatenate, hold, stack
 from .polynomial import brake, cubic, hermite_coeffs, quintic
 from .optimal import time_optimal, time_optimal_stop
@@ -17,6 +17,6 @@ from .via import quintic_via
 
 __all__ = [
     'PiecewisePolynomial', 'Lspb', 'ViaLspb',
-    'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'quintic_via',
+    'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'via_lspb_timing', 'quintic_via',
     'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake', 'time_optimal', 'time_optimal_stop',
 ]

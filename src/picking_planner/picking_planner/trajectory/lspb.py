@@ -183,33 +183,7 @@ def via_lspb(points, durations, accel):
         out.blend_times = np.stack([single.blend_time, single.blend_time])
         out.segment_velocities = single.cruise_velocity[None, :]
         return out
-
-    dq = np.diff(points, axis=0)                                    # (m, n)
-    tb = np.zeros((m + 1, n))
-    vel = dq / td[:, None]
-    for end, k in (('first', 0), ('last', m - 1)):
-        disc = td[k] ** 2 - 2.0 * np.abs(dq[k]) / a
-        if np.any(disc < -_RTOL * td[k] ** 2):
-            j = int(np.argmin(disc))
-            raise ValueError(
-                f'accel {a[j]:.6g} is too small for the {end} segment of joint {j}: '
-                f'moving {dq[k, j]:.6g} in {td[k]:.6g} s needs at least '
-                f'2|dq|/duration^2 = {2.0 * abs(dq[k, j]) / td[k] ** 2:.6g}')
-        t_end = td[k] - np.sqrt(np.maximum(disc, 0.0))
-        tb[0 if k == 0 else m] = t_end
-        vel[k] = dq[k] / (td[k] - 0.5 * t_end)
-    tb[1:m] = np.abs(np.diff(vel, axis=0)) / a
-    linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
-    linear[0] -= 0.5 * tb[0]
-    linear[-1] -= 0.5 * tb[-1]
-    if np.any(linear < -_RTOL * td[:, None]):
-        k, j = np.unravel_index(int(np.argmin(linear)), linear.shape)
-        need = td[k] - linear[k, j]
-        raise ValueError(
-            f'segment {k} (between via points {k} and {k + 1}) of joint {j} is too short for '
-            f'its blends at accel {a[j]:.6g}: the blends need {need:.6g} s but the segment '
-            f'lasts {td[k]:.6g} s; raise accel or lengthen the segment')
-
+    tb, vel = _via_timing(points, td, a)
     times = np.concatenate(([0.0], np.cumsum(td)))
     # Phase boundaries, per joint: blend_0, line_0, blend_1, line_1, ..., blend_m.
     bounds = np.empty((2 * m + 2, n))
@@ -245,3 +219,53 @@ def via_lspb(points, durations, accel):
     out = ViaLspb(breaks, coeffs)
     out.via_times, out.blend_times, out.segment_velocities = times, tb, vel
     return out
+
+
+def via_lspb_timing(points, durations, accel):
+    """The timing of :func:`via_lspb` without building the trajectory (microseconds).
+
+    Returns ``(blend_times, segment_velocities)``, shapes (m + 1, n) and (m, n);
+    raises the same ValueError when a segment is too short for its blends. Its
+    largest speed is that of the trajectory (blends only join the lines), so a
+    timing can be searched for with this alone.
+    """
+    points = as_points(points)
+    m = points.shape[0] - 1
+    td = as_durations(durations, m)
+    a = _accel(accel, points.shape[1])
+    if m == 1:
+        single = lspb(points[0], points[1], td[0], a)
+        return np.stack([single.blend_time, single.blend_time]), single.cruise_velocity[None, :]
+    return _via_timing(points, td, a)
+
+
+def _via_timing(points, td, a):
+    """Craig's blend times (m + 1, n) and line velocities (m, n) for m >= 2 segments."""
+    m = points.shape[0] - 1
+    n = points.shape[1]
+    dq = np.diff(points, axis=0)                                    # (m, n)
+    tb = np.zeros((m + 1, n))
+    vel = dq / td[:, None]
+    for end, k in (('first', 0), ('last', m - 1)):
+        disc = td[k] ** 2 - 2.0 * np.abs(dq[k]) / a
+        if np.any(disc < -_RTOL * td[k] ** 2):
+            j = int(np.argmin(disc))
+            raise ValueError(
+                f'accel {a[j]:.6g} is too small for the {end} segment of joint {j}: '
+                f'moving {dq[k, j]:.6g} in {td[k]:.6g} s needs at least '
+                f'2|dq|/duration^2 = {2.0 * abs(dq[k, j]) / td[k] ** 2:.6g}')
+        t_end = td[k] - np.sqrt(np.maximum(disc, 0.0))
+        tb[0 if k == 0 else m] = t_end
+        vel[k] = dq[k] / (td[k] - 0.5 * t_end)
+    tb[1:m] = np.abs(np.diff(vel, axis=0)) / a
+    linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
+    linear[0] -= 0.5 * tb[0]
+    linear[-1] -= 0.5 * tb[-1]
+    if np.any(linear < -_RTOL * td[:, None]):
+        k, j = np.unravel_index(int(np.argmin(linear)), linear.shape)
+        need = td[k] - linear[k, j]
+        raise ValueError(
+            f'segment {k} (between via points {k} and {k + 1}) of joint {j} is too short for '
+            f'its blends at accel {a[j]:.6g}: the blends need {need:.6g} s but the segment '
+            f'lasts {td[k]:.6g} s; raise accel or lengthen the segment')
+    return tb, vel
