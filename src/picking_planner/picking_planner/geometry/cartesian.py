@@ -123,6 +123,11 @@ class CartesianPath:
     def duration(self) -> float:
         return self.profile.duration
 
+    @property
+    def oriented(self) -> bool:
+        """True when the path sets the tool's orientation (else positions only)."""
+        return self._slerp is not None or self._fixed is not None
+
     def stretched(self, factor):
         """The same path traversed ``factor`` times as slowly (the same poses, later)."""
         out = object.__new__(CartesianPath)

@@ -101,7 +101,7 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     n = max(int(np.ceil(path.duration / dt - 1e-9)), 1) + 1
     t = np.linspace(0.0, path.duration, n)
     poses = path.poses(t)
-    if path.orientations(t[:1]) is None:
+    if not path.oriented:
         poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
     q = _batched(arm, poses, arm.check_joints(seed, 'seed'), max_joint_step)
     if q is None:
