@@ -25,8 +25,9 @@ from trajectory_msgs.msg import JointTrajectory
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, make_realtime,
-                                        newest_waiting, reorder, run_node, status)
+from picking_planner import cdr
+from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, joint_state_reader,
+                                        make_realtime, newest_waiting, reorder, run_node, status)
 
 from .core import ControllerCore, Event, Tolerances
 from .timing import LoopStats
@@ -72,7 +73,7 @@ class ControllerNode(Node):
                                                        RELIABLE)
         # The control thread takes the newest joint_states itself at each tick: no
         # executor callbacks (and no GIL held by another thread) at the state's rate.
-        self.states = LatestMessage(self, JointState, 'joint_states')
+        self.states = LatestMessage(self, JointState, 'joint_states', reader=joint_state_reader())
         self._last_state = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name='control', daemon=True)
@@ -150,7 +151,9 @@ class ControllerNode(Node):
         period = 1.0 / self.rate
         next_t = time.monotonic()
         stats = self.loop_stats
-        # One command message, refilled at every tick (publish serialises it at once).
+        # The command's bytes laid out once, the stamp and values written at every tick (where
+        # this middleware reads our bytes; else one message, refilled).
+        writer = cdr.JointStateWriter(self.core.names) if cdr.check() else None
         cmd = joint_state(self.core.names, None, [], [], [])
         while not self._stop.is_set():
             stats.record(time.monotonic())
@@ -174,9 +177,12 @@ class ControllerNode(Node):
                     self._commanding = True
                     stats.reset()
                 # Stamped with the time the reference was sampled at: the tick's time.
-                cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-                cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
-                self.pub_cmd.publish(cmd)
+                if writer is not None:
+                    self.pub_cmd.publish(writer.write(ns, *ref))
+                else:
+                    cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+                    cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
+                    self.pub_cmd.publish(cmd)
             delay = next_t - time.monotonic()
             if delay < -period:
                 next_t = time.monotonic()        # too far behind: resynchronise, do not burst

@@ -1,14 +1,16 @@
-"""Messages the planner sends often, encoded straight to CDR bytes.
+"""Messages the nodes send and read often, encoded straight to and from CDR bytes.
 
 rclpy's message classes check every field as it is set and convert it again
 to serialise it: a JointTrajectory of a few hundred points, or the Path of its
 tool poses, costs milliseconds to tens of milliseconds that way, on the way
-from a goal to its trajectory and its answer. :func:`joint_trajectory` and
-:func:`path` write the same bytes (XCDR1, little endian: what
-``serialize_message`` gives with the default middleware) for
-``Publisher.publish``, which sends bytes as they are. :func:`check` reads both
-back once, so that a node can fall back to the message classes should a
-middleware serialise differently.
+from a goal to its trajectory and its answer; a JointState costs tens of
+microseconds each way, at 1 kHz in the controller and the simulator.
+:func:`joint_trajectory`, :func:`path` and :class:`JointStateWriter` write the
+same bytes (XCDR1, little endian: what ``serialize_message`` gives with the
+default middleware) for ``Publisher.publish``, which sends bytes as they are;
+:class:`JointStateReader` reads a JointState taken raw. :func:`check` tries
+them all once against the middleware's own (de)serialiser, so that a node can
+fall back to the message classes should a middleware serialise differently.
 """
 
 from __future__ import annotations
@@ -132,11 +134,132 @@ def path(stamp_ns, frame_id, positions, quaternions):
     return bytes(w.buf)
 
 
+def _aligned(offset, n):
+    """``offset`` (in the bytes, header included) moved up to a multiple of ``n`` after the header."""
+    return offset + (-(offset - 4) % n)
+
+
+class JointStateWriter:
+    """The CDR bytes of sensor_msgs/JointState messages with fixed joint names.
+
+    Everything but the stamp and the values is the same in every message, so the
+    bytes are laid out once and each message writes only those into them:
+    ``write(stamp_ns, position, velocity, effort)`` (each of the names' length).
+    """
+
+    def __init__(self, names, frame_id=''):
+        self.n = n = len(names)
+        w = _Writer()
+        w.buf += _STAMP.pack(0, 0)
+        w.string(frame_id)
+        w.u32(n)
+        for name in names:
+            w.string(name)
+        offsets = []
+        for _ in range(3):                            # position, velocity, effort
+            w.u32(n)
+            if n:
+                w.align(8)
+            offsets.append(len(w.buf))
+            w.buf += bytes(8 * n)
+        self._buf = w.buf
+        self._values = [np.frombuffer(self._buf, dtype='<f8', count=n, offset=o) for o in offsets]
+
+    def write(self, stamp_ns, position, velocity, effort):
+        _STAMP.pack_into(self._buf, 4, *divmod(int(stamp_ns), 1_000_000_000))
+        for view, values in zip(self._values, (position, velocity, effort)):
+            view[:] = values
+        return bytes(self._buf)
+
+
+class _Stamp:
+    __slots__ = ('sec', 'nanosec')
+
+    def __init__(self, sec, nanosec):
+        self.sec, self.nanosec = sec, nanosec
+
+
+class _Header:
+    __slots__ = ('stamp', 'frame_id')
+
+    def __init__(self, stamp, frame_id):
+        self.stamp, self.frame_id = stamp, frame_id
+
+
+class JointStateData:
+    """A JointState read from CDR bytes: the message's fields (``header.stamp.sec``,
+    ``name`` as a tuple, ``position``, ``velocity``, ``effort`` as read-only float arrays)."""
+
+    __slots__ = ('header', 'name', 'position', 'velocity', 'effort')
+
+    def __init__(self, header, name, position, velocity, effort):
+        self.header, self.name, self.position, self.velocity, self.effort = header, name, position, velocity, effort
+
+
+class JointStateReader:
+    """Reads the CDR bytes of sensor_msgs/JointState (little endian, as taken raw).
+
+    A stream repeats its frame and joint names, so their bytes are compared with
+    the last message's and decoded only when they change. ``read`` raises
+    ValueError for bytes it cannot read (big endian, truncated, malformed).
+    """
+
+    def __init__(self):
+        self._prefix = None          # the bytes of frame_id and names last decoded ...
+        self._decoded = None         # ... their (frame_id, names)
+
+    def read(self, data):
+        try:
+            if data[:4] != _HEADER:
+                raise ValueError('not little-endian CDR')
+            sec, nanosec = _STAMP.unpack_from(data, 4)
+            end = self._names_end(data)
+            arrays = []
+            for _ in range(3):
+                end = _aligned(end, 4)
+                (count,) = _U32.unpack_from(data, end)
+                end += 4
+                if count:
+                    end = _aligned(end, 8)
+                if end + 8 * count > len(data):
+                    raise ValueError('truncated')
+                arrays.append(np.frombuffer(data, dtype='<f8', count=count, offset=end))
+                end += 8 * count
+        except struct.error as exc:
+            raise ValueError(f'malformed JointState bytes: {exc}') from None
+        frame_id, names = self._decoded
+        return JointStateData(_Header(_Stamp(sec, nanosec), frame_id), names, *arrays)
+
+    def _names_end(self, data):
+        """Where the names end; decodes the frame and the names if they changed."""
+        prefix = self._prefix
+        if prefix is not None and data.startswith(prefix, 12):
+            return 12 + len(prefix)
+        offset = 12
+        (size,) = _U32.unpack_from(data, offset)
+        frame_id = data[offset + 4:offset + 3 + size].decode('utf-8')
+        offset = _aligned(offset + 4 + size, 4)
+        (count,) = _U32.unpack_from(data, offset)
+        offset += 4
+        names = []
+        for _ in range(count):
+            offset = _aligned(offset, 4)
+            (size,) = _U32.unpack_from(data, offset)
+            if size == 0 or offset + 4 + size > len(data):
+                raise ValueError('malformed JointState name')
+            names.append(data[offset + 4:offset + 3 + size].decode('utf-8'))
+            offset += 4 + size
+        self._prefix, self._decoded = bytes(data[12:offset]), (frame_id, tuple(names))
+        return offset
+
+
+@functools.cache
 def check():
-    """True when :func:`joint_trajectory` gives what this middleware's serialiser reads back
-    as the same message."""
+    """True when our bytes are what this middleware's serialiser writes and reads back as
+    the same messages."""
     from nav_msgs.msg import Path
-    from rclpy.serialization import deserialize_message
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
 
     names = ['a', 'bc', 'def']
@@ -147,9 +270,22 @@ def check():
         msg = deserialize_message(joint_trajectory(1_700_000_000_123_456_789, 'base_link', names, t, q, -q, 2 * q),
                                   JointTrajectory)
         tool = deserialize_message(path(1_700_000_000_123_456_789, 'base', xyz, quat), Path)
+        state = JointState(name=names, position=q[0].tolist(), velocity=(-q[1]).tolist(), effort=q[2].tolist())
+        state.header.stamp.sec, state.header.stamp.nanosec = 1_700_000_000, 123_456_789
+        state.header.frame_id = 'base'
+        # (Compared field by field: the serialiser leaves its padding bytes as they were.)
+        written = deserialize_message(JointStateWriter(names, 'base').write(1_700_000_000_123_456_789, q[0], -q[1],
+                                                                            q[2]), JointState)
+        reader = JointStateReader()
+        read = [reader.read(serialize_message(state)) for _ in range(2)]     # decoded, then cached
     except Exception:  # noqa: BLE001 - any failure to read it back means: do not use it
         return False
-    return (len(tool.poses) == 3 and tool.header.frame_id == 'base' and tool.header.stamp.nanosec == 123_456_789
+    return (written.header == state.header and written.name == state.name
+            and all(np.array_equal(getattr(written, f), getattr(state, f)) for f in ('position', 'velocity', 'effort'))
+            and all(r.header.stamp.sec == 1_700_000_000 and r.header.stamp.nanosec == 123_456_789
+                    and r.header.frame_id == 'base' and r.name == tuple(names) and np.array_equal(r.position, q[0])
+                    and np.array_equal(r.velocity, -q[1]) and np.array_equal(r.effort, q[2]) for r in read)
+            and len(tool.poses) == 3 and tool.header.frame_id == 'base' and tool.header.stamp.nanosec == 123_456_789
             and all(p.header == tool.header and [p.pose.position.x, p.pose.position.y, p.pose.position.z] == list(xyz[i])
                     and [p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z, p.pose.orientation.w]
                     == list(quat[i]) for i, p in enumerate(tool.poses))

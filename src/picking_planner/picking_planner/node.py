@@ -35,8 +35,8 @@ from .kinematics.paths import check_joint_limits
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
-from .ros_common import (ERROR, OK, WARN, LatestMessage, newest_waiting, reorder, run_node, status,
-                         status_values)
+from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
+                         status, status_values)
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -121,8 +121,8 @@ class PlannerNode(Node):
         self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
         # executor callbacks at their rates (rclpy spends about a millisecond on each).
-        self.states = LatestMessage(self, JointState, 'joint_states')
-        self.commands = LatestMessage(self, JointState, 'joint_commands')
+        self.states = LatestMessage(self, JointState, 'joint_states', reader=joint_state_reader())
+        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=joint_state_reader())
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
                                f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')

@@ -54,3 +54,55 @@ def test_a_tool_path_in_cdr_bytes_reads_back_with_every_pose(poses, frame):
 
 def test_the_middleware_reads_our_bytes_back():
     assert cdr.check()
+
+
+def _state(names, frame, stamp_ns, position, velocity, effort):
+    from sensor_msgs.msg import JointState
+    msg = JointState(name=names, position=list(position), velocity=list(velocity), effort=list(effort))
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    return msg
+
+
+@pytest.mark.parametrize('joints, frame', [(7, ''), (6, 'base_link'), (1, 'b'), (0, 'wörld'), (3, 'abc')]
+                         + [(2, 'f' * k) for k in range(8)])
+def test_joint_states_written_and_read_as_cdr_bytes_match_the_message_classes(joints, frame):
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    rng = np.random.default_rng(joints)
+    names = [f'j{i}' * (i % 4 + 1) for i in range(joints)]
+    writer, reader = cdr.JointStateWriter(names, frame), cdr.JointStateReader()
+    for stamp_ns in (0, 1_700_000_000_999_999_999, 42):          # the template is rewritten each time
+        values = rng.normal(size=(3, joints))
+        msg = _state(names, frame, stamp_ns, *values)
+        assert deserialize_message(writer.write(stamp_ns, *values), JointState) == msg
+        for data in (serialize_message(msg), writer.write(stamp_ns, *values)):
+            got = reader.read(data)
+            assert (got.header.stamp.sec, got.header.stamp.nanosec) == divmod(stamp_ns, 1_000_000_000)
+            assert got.header.frame_id == frame and got.name == tuple(names)
+            for a, b in zip((got.position, got.velocity, got.effort), values):
+                assert np.array_equal(a, b)
+
+
+def test_the_joint_state_reader_follows_changing_names_and_empty_fields():
+    from rclpy.serialization import serialize_message
+    reader = cdr.JointStateReader()
+    first = reader.read(serialize_message(_state(['a', 'b'], '', 5, [1.0, 2.0], [], [])))
+    assert first.name == ('a', 'b') and list(first.position) == [1.0, 2.0] and first.velocity.size == 0
+    second = reader.read(serialize_message(_state(['b', 'a', 'c'], 'w', 6, [3.0, 4.0, 5.0], [0.1] * 3, [])))
+    assert second.name == ('b', 'a', 'c') and second.header.frame_id == 'w' and list(second.velocity) == [0.1] * 3
+    assert first.name == ('a', 'b')                              # a read message stays as it was read
+
+
+@pytest.mark.parametrize('damage', ['truncate', 'big_endian', 'names'])
+def test_the_joint_state_reader_refuses_bytes_it_cannot_read(damage):
+    from rclpy.serialization import serialize_message
+    data = serialize_message(_state(['a', 'b'], 'base', 5, [1.0, 2.0], [3.0, 4.0], [5.0, 6.0]))
+    if damage == 'truncate':
+        data = data[:-9]
+    elif damage == 'big_endian':
+        data = b'\x00\x00' + data[2:]
+    else:
+        data = data[:28] + b'\xff\xff\xff\x7f' + data[32:]            # the first name's length
+    with pytest.raises(ValueError):
+        cdr.JointStateReader().read(data)

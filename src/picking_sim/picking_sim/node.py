@@ -22,7 +22,9 @@ from std_msgs.msg import String
 
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner.ros_common import LatestMessage, joint_state, make_realtime, reorder, run_node
+from picking_planner import cdr
+from picking_planner.ros_common import (LatestMessage, joint_state, joint_state_reader, make_realtime, reorder,
+                                        run_node)
 
 from .servo import Servo, ServoParams
 
@@ -65,7 +67,8 @@ class SimNode(Node):
         self.pub_description = self.create_publisher(String, 'robot_description', LATCHED)
         self.pub_description.publish(String(data=self.arm.urdf))
         # The servo thread takes the newest command itself: no 1 kHz executor callbacks.
-        self.commands = LatestMessage(self, JointState, 'joint_commands')
+        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=joint_state_reader())
+        self._writer = cdr.JointStateWriter(self.names) if cdr.check() else None
         self._applied = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name='servo', daemon=True)
@@ -148,7 +151,12 @@ class SimNode(Node):
         if self.noise_std > 0:
             q = q + self.rng.normal(0.0, self.noise_std, q.shape)
         sec = int(t_state // 1)
-        stamp = Time(sec=sec, nanosec=min(int(round((t_state - sec) * 1e9)), 999_999_999))
+        nanosec = min(int(round((t_state - sec) * 1e9)), 999_999_999)
+        if self._writer is not None:
+            self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd,
+                                                       self.servo.torque))
+            return
+        stamp = Time(sec=sec, nanosec=nanosec)
         self.pub_states.publish(joint_state(self.names, stamp, q, self.servo.qd, self.servo.torque))
 
     def close(self):
