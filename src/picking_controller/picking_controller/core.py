@@ -392,14 +392,23 @@ class ControllerCore:
         return [names.index(n) if n in names else -1 for n in self.names]
 
     def _block(self, values, m, k, order, what, optional=False, held=None):
-        rows = [np.asarray(v, float) for v in values]
-        if optional and all(r.size == 0 for r in rows):
-            return None
-        if m == 0:
-            raise ValueError('no points')
-        if len(rows) != m or any(r.shape != (k,) for r in rows):
-            raise ValueError(f'every point needs {k} {what} (one per joint name)')
-        given = np.array(rows)
+        if isinstance(values, np.ndarray) and values.ndim == 2:      # one row per point, already
+            if optional and values.size == 0:
+                return None
+            if m == 0:
+                raise ValueError('no points')
+            if values.shape != (m, k):
+                raise ValueError(f'every point needs {k} {what} (one per joint name)')
+            given = values.astype(float)
+        else:
+            rows = [np.asarray(v, float) for v in values]
+            if optional and all(r.size == 0 for r in rows):
+                return None
+            if m == 0:
+                raise ValueError('no points')
+            if len(rows) != m or any(r.shape != (k,) for r in rows):
+                raise ValueError(f'every point needs {k} {what} (one per joint name)')
+            given = np.array(rows)
         if not np.all(np.isfinite(given)):
             raise ValueError(f'{what} must be finite')
         arr = given[:, np.maximum(order, 0)]

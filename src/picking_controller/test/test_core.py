@@ -129,13 +129,29 @@ def test_future_start_stamp_waits_then_moves():
     (['a', 'b'], [0.2], [[2.0, 0]], 'beyond its limit'),      # 10 rad/s between the points
     (['a', 'b'], [1.0], [[0, 0, 0]], 'every point needs 2 positions'),
 ])
-def test_bad_trajectories_are_refused_and_the_reference_stays(names, times, pos, reason):
+@pytest.mark.parametrize('arrays', [False, True])
+def test_bad_trajectories_are_refused_and_the_reference_stays(names, times, pos, reason, arrays):
     c = core()
     before = c.reference(0.0)
-    ev = c.load(names, times, pos, [], [], 0.0, now=0.0)
+    rest = [], []
+    if arrays:                # as the node reads them from the message's bytes: one row per point
+        pos = np.array(pos, float).reshape(len(times), -1) if len(times) else np.zeros((0, len(names)))
+        times, rest = np.array(times, float), (np.zeros((len(times), 0)), np.zeros((len(times), 0)))
+    ev = c.load(names, times, pos, *rest, 0.0, now=0.0)
     assert ev.level == 'ERROR' and reason in ev.message, ev.message
     assert c.reference(0.0)[0] == pytest.approx(before[0])
     assert c.mode == 'holding'
+
+
+def test_a_trajectory_given_as_arrays_runs_as_the_same_one_given_as_lists():
+    times, pos = [0.5, 1.0, 1.5], [[0.2, 0.1], [0.6, 0.3], [1.0, 0.4]]
+    vel, acc = [[0.8, 0.2], [0.8, 0.2], [0.0, 0.0]], [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+    refs = []
+    for form in (lambda x: x, lambda x: np.array(x, float)):
+        c = core()
+        assert c.load(['a', 'b'], form(times), form(pos), form(vel), form(acc), 0.0, now=0.0).level == 'OK'
+        refs.append(np.array([np.concatenate(c.reference(t)) for t in np.linspace(0.0, 2.0, 41)]))
+    assert np.array_equal(refs[0], refs[1])
 
 
 def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():

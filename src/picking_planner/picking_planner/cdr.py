@@ -235,22 +235,113 @@ class JointStateReader:
         prefix = self._prefix
         if prefix is not None and data.startswith(prefix, 12):
             return 12 + len(prefix)
-        offset = 12
-        (size,) = _U32.unpack_from(data, offset)
-        frame_id = data[offset + 4:offset + 3 + size].decode('utf-8')
-        offset = _aligned(offset + 4 + size, 4)
-        (count,) = _U32.unpack_from(data, offset)
-        offset += 4
-        names = []
-        for _ in range(count):
-            offset = _aligned(offset, 4)
-            (size,) = _U32.unpack_from(data, offset)
-            if size == 0 or offset + 4 + size > len(data):
-                raise ValueError('malformed JointState name')
-            names.append(data[offset + 4:offset + 3 + size].decode('utf-8'))
-            offset += 4 + size
-        self._prefix, self._decoded = bytes(data[12:offset]), (frame_id, tuple(names))
+        offset, frame_id, names = _strings(data, 12)
+        self._prefix, self._decoded = bytes(data[12:offset]), (frame_id, names)
         return offset
+
+
+class JointTrajectoryData:
+    """A JointTrajectory read from CDR bytes: ``header`` (``stamp.sec``, ``stamp.nanosec``,
+    ``frame_id``), ``joint_names`` (a tuple) and, one row per point, ``times``
+    (time_from_start, s, shape (N,)), ``positions``, ``velocities``,
+    ``accelerations``, ``effort`` (each shape (N, its length in every point))."""
+
+    __slots__ = ('header', 'joint_names', 'times', 'positions', 'velocities', 'accelerations', 'effort')
+
+    def __init__(self, header, joint_names, times, positions, velocities, accelerations, effort):
+        self.header, self.joint_names, self.times = header, joint_names, times
+        self.positions, self.velocities, self.accelerations, self.effort = positions, velocities, accelerations, effort
+
+
+def _point_layout(start, counts):
+    """Where a JointTrajectoryPoint starting at byte ``start`` keeps its four sequences
+    (``(count offset, values offset)`` each, for the given lengths), its time, and where it ends."""
+    fields, offset = [], start
+    for count in counts:
+        offset = _aligned(offset, 4)
+        at = offset
+        offset += 4
+        if count:
+            offset = _aligned(offset, 8)
+        fields.append((at, offset))
+        offset += 8 * count
+    offset = _aligned(offset, 4)
+    return fields, offset, offset + 8
+
+
+def read_joint_trajectory(data):
+    """A :class:`JointTrajectoryData` from the CDR bytes of a trajectory_msgs/JointTrajectory.
+
+    Every point is read at once (strided views of the bytes, no Python object per
+    point) when all points give the same number of positions, velocities,
+    accelerations and efforts as the first, which is what a trajectory that can be
+    run has. Raises ValueError otherwise (points of other lengths, big endian,
+    truncated or malformed bytes): read those with the message class.
+    """
+    try:
+        if data[:4] != _HEADER:
+            raise ValueError('not little-endian CDR')
+        sec, nanosec = _STAMP.unpack_from(data, 4)
+        offset, frame_id, names = _strings(data, 12)
+        offset = _aligned(offset, 4)
+        (n_points,) = _U32.unpack_from(data, offset)
+        offset += 4
+        if n_points == 0:
+            empty = np.zeros((0, len(names)))
+            return JointTrajectoryData(_Header(_Stamp(sec, nanosec), frame_id), names, np.zeros(0), empty,
+                                       empty, empty, empty)
+        counts, at = [], offset                    # the first point's lengths
+        for _ in range(4):
+            at = _aligned(at, 4)
+            (count,) = _U32.unpack_from(data, at)
+            counts.append(count)
+            at = (_aligned(at + 4, 8) if count else at + 4) + 8 * count
+        # The first point's layout, then the second's: from there every point starts at the
+        # same alignment (its size a multiple of 8), so all share the second's offsets.
+        starts, layouts = [offset], []
+        for _ in range(min(n_points, 2)):
+            layouts.append(_point_layout(starts[-1], counts))
+            starts.append(layouts[-1][2])
+        stride = starts[2] - starts[1] if n_points > 1 else 8
+        if stride % 8 or starts[1] + stride * (n_points - 1) > len(data):
+            raise ValueError('irregular or truncated points')
+        columns = [[] for _ in range(6)]           # 4 sequences, sec, nanosec
+        for first, count, layout in ((starts[0], 1, layouts[0]), (starts[1], n_points - 1, layouts[-1])):
+            if count == 0:
+                continue
+            fields, time_at, _ = layout
+            for i, ((count_at, values_at), k) in enumerate(zip(fields, counts)):
+                lengths = np.ndarray((count,), '<u4', data, count_at, (stride,))
+                if np.any(lengths != k):
+                    raise ValueError('points of different lengths')
+                columns[i].append(np.ndarray((count, k), '<f8', data, values_at, (stride, 8)))
+            columns[4].append(np.ndarray((count,), '<i4', data, time_at, (stride,)))
+            columns[5].append(np.ndarray((count,), '<u4', data, time_at + 4, (stride,)))
+    except (struct.error, TypeError) as exc:
+        raise ValueError(f'malformed JointTrajectory bytes: {exc}') from None
+    q, qd, qdd, effort, secs, nanos = (np.concatenate(c) for c in columns)
+    return JointTrajectoryData(_Header(_Stamp(sec, nanosec), frame_id), names, secs + nanos * 1e-9,
+                               q, qd, qdd, effort)
+
+
+def _strings(data, offset):
+    """``(end, frame_id, names)``: a header's frame id then a sequence of strings, from ``offset``."""
+    (size,) = _U32.unpack_from(data, offset)
+    if size == 0 or offset + 4 + size > len(data):
+        raise ValueError('malformed frame_id')
+    frame_id = data[offset + 4:offset + 3 + size].decode('utf-8')
+    offset = _aligned(offset + 4 + size, 4)
+    (count,) = _U32.unpack_from(data, offset)
+    offset += 4
+    names = []
+    for _ in range(count):
+        offset = _aligned(offset, 4)
+        (size,) = _U32.unpack_from(data, offset)
+        if size == 0 or offset + 4 + size > len(data):
+            raise ValueError('malformed name')
+        names.append(data[offset + 4:offset + 3 + size].decode('utf-8'))
+        offset += 4 + size
+    return offset, frame_id, tuple(names)
 
 
 @functools.cache
@@ -278,9 +369,15 @@ def check():
                                                                             q[2]), JointState)
         reader = JointStateReader()
         read = [reader.read(serialize_message(state)) for _ in range(2)]     # decoded, then cached
+        trajectory = read_joint_trajectory(serialize_message(msg))
     except Exception:  # noqa: BLE001 - any failure to read it back means: do not use it
         return False
-    return (written.header == state.header and written.name == state.name
+    return (trajectory.header.stamp.sec == 1_700_000_000 and trajectory.header.stamp.nanosec == 123_456_789
+            and trajectory.header.frame_id == 'base_link' and trajectory.joint_names == tuple(names)
+            and np.array_equal(trajectory.positions, q) and np.array_equal(trajectory.velocities, -q)
+            and np.array_equal(trajectory.accelerations, 2 * q) and trajectory.effort.shape == (3, 0)
+            and np.allclose(trajectory.times, t, rtol=0.0, atol=1e-9)
+            and written.header == state.header and written.name == state.name
             and all(np.array_equal(getattr(written, f), getattr(state, f)) for f in ('position', 'velocity', 'effort'))
             and all(r.header.stamp.sec == 1_700_000_000 and r.header.stamp.nanosec == 123_456_789
                     and r.header.frame_id == 'base' and r.name == tuple(names) and np.array_equal(r.position, q[0])

@@ -163,7 +163,7 @@ def newest_waiting(sub, msg, on_older):
     A burst then never builds a backlog: the newest is handled, every older one is
     answered (as superseded) without being worked on.
     """
-    while (got := sub.handle.take_message(sub.msg_type, False)) is not None:
+    while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
         on_older(msg)
         msg = got[0]
     return msg

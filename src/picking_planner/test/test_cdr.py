@@ -106,3 +106,51 @@ def test_the_joint_state_reader_refuses_bytes_it_cannot_read(damage):
         data = data[:28] + b'\xff\xff\xff\x7f' + data[32:]            # the first name's length
     with pytest.raises(ValueError):
         cdr.JointStateReader().read(data)
+
+
+@pytest.mark.parametrize('joints, points, frame', [(7, 300, ''), (6, 1, 'base_link'), (1, 2, 'b'), (3, 0, 'wörld'),
+                                                     (0, 4, 'x')] + [(6, 3, 'f' * k) for k in range(8)])
+@pytest.mark.parametrize('given', ['q qd qdd', 'q', 'q qd qdd effort', 'q effort'])
+def test_a_trajectory_read_from_cdr_bytes_has_every_points_values(joints, points, frame, given):
+    """What the controller reads with numpy is what the message class holds, whichever fields the
+    points give (each layout aligns its points differently)."""
+    from rclpy.serialization import serialize_message
+    rng = np.random.default_rng(joints * 100 + points)
+    names = [f'joint_{i}' * (i % 3 + 1) for i in range(joints)]
+    t = np.cumsum(rng.uniform(0.001, 0.5, points))
+    values = {k: rng.normal(0, 3, (points, joints)) for k in ('q', 'qd', 'qdd', 'effort')}
+    msg = _classic(1_795_000_000_987_654_321, frame, names, t, values['q'], values['qd'], values['qdd'])
+    for p, i in zip(msg.points, range(points)):
+        p.velocities = values['qd'][i].tolist() if 'qd' in given.split() else []
+        p.accelerations = values['qdd'][i].tolist() if 'qdd' in given.split() else []
+        p.effort = values['effort'][i].tolist() if 'effort' in given.split() else []
+    got = cdr.read_joint_trajectory(serialize_message(msg))
+    assert (got.header.stamp.sec, got.header.stamp.nanosec, got.header.frame_id) == (1_795_000_000, 987_654_321, frame)
+    assert got.joint_names == tuple(names)
+    assert got.times == pytest.approx([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points])
+    for field, key in (('positions', 'q'), ('velocities', 'qd'), ('accelerations', 'qdd'), ('effort', 'effort')):
+        want = np.array([getattr(p, field) for p in msg.points]).reshape(points, -1) if points \
+            else np.zeros((0, joints))
+        assert getattr(got, field).shape == (want.shape if points else (0, joints))
+        assert np.array_equal(getattr(got, field), want), field
+
+
+@pytest.mark.parametrize('damage', ['lengths', 'truncate', 'big_endian', 'count'])
+def test_a_trajectory_the_reader_cannot_read_at_once_is_refused(damage):
+    """Points of different lengths (the controller then reads the message class, and refuses the
+    trajectory with its reason) and broken bytes are a ValueError, never wrong values."""
+    from rclpy.serialization import serialize_message
+    msg = _classic(5, '', ['a', 'b'], np.array([0.1, 0.2, 0.3]), *(np.ones((3, 2)) for _ in range(3)))
+    if damage == 'lengths':
+        msg.points[2].velocities = [1.0]
+    data = serialize_message(msg)
+    if damage == 'truncate':                    # (our bytes: the serialiser's may carry spare bytes after the end)
+        data = cdr.joint_trajectory(5, '', ['a', 'b'], np.array([0.1, 0.2, 0.3]), *(np.ones((3, 2)) for _ in range(3)))
+        assert cdr.read_joint_trajectory(data).times.size == 3
+        data = data[:-5]
+    elif damage == 'big_endian':
+        data = b'\x00\x00' + data[2:]
+    elif damage == 'count':
+        data = data[:40] + b'\xff\xff\xff\x0f' + data[44:]            # the number of points
+    with pytest.raises(ValueError):
+        cdr.read_joint_trajectory(data)
