@@ -35,6 +35,9 @@ from picking_planner.ros_common import LatestMessage
 
 BIN = Path(sys.executable).parent
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+#: The planner's goal QoS (reliable, keep last 1000): a flood of goals at 1000 a second must not
+#: overwrite goals in our own history before the planner has acknowledged them.
+BURST = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
               'wrist_3_joint']
 HOME = [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]
@@ -138,9 +141,9 @@ class Client(Node):
                                                      self._rec(self.planner_status), RELIABLE)
         self._controller_sub = self.create_subscription(DiagnosticStatus, 'controller_status',
                                                         self._rec(self.controller_status), RELIABLE)
-        self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', RELIABLE)
-        self.pub_path = self.create_publisher(PoseArray, 'goal_path', RELIABLE)
-        self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', RELIABLE)
+        self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', BURST)
+        self.pub_path = self.create_publisher(PoseArray, 'goal_path', BURST)
+        self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', BURST)
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
         self._commands_tap = LatestMessage(self, JointState, 'joint_commands')
         self._goal = None                 # (publisher, message) of the last goal sent
