@@ -89,8 +89,8 @@ class PlannerNode(Node):
         for name in PICK:
             self.declare_parameter(name, getattr(pick, name))
         self.arm = ArmModel.from_urdf(self.get_parameter('urdf_path').value or default_urdf())
-        # The compiled IK loads now (a fraction of a second from numba's cache),
-        # not on the first goal.
+        # The compiled IK and forward kinematics load now (a fraction of a second from
+        # numba's cache), not on the first goal.
         if not self.arm.load_ik() and self.arm.solver != 'numeric':
             self.get_logger().warning('the compiled IK did not load (is numba installed?): IK runs '
                                       'the vectorised closed form (the same solutions, slower)')

@@ -251,3 +251,54 @@ def test_joint_limits_are_checked_for_the_joints_named_gripper_included(arm):
         check_joint_limits(arm, t, q[:, :1], zero[:, :1], zero[:, :1], names=['tail_joint'])
     with pytest.raises(ValueError, match='needs times'):
         check_joint_limits(arm, t, q, zero, zero, names=some)
+
+
+PRISMATIC_URDF = """<robot name="slide">
+  <link name="base_link"/><link name="a"/><link name="b"/><link name="c"/><link name="tool0"/>
+  <joint name="turn" type="revolute"><parent link="base_link"/><child link="a"/>
+    <origin xyz="0 0 0.3" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="1" effort="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/>
+    <origin xyz="0.1 0 0" rpy="0.2 0 0"/><axis xyz="1 0 0"/><limit lower="0" upper="0.5" velocity="1" effort="1"/></joint>
+  <joint name="tilt" type="continuous"><parent link="b"/><child link="c"/>
+    <origin xyz="0 0.05 0" rpy="0 0.3 0.1"/><axis xyz="0.6 0 0.8"/></joint>
+  <joint name="flange" type="fixed"><parent link="c"/><child link="tool0"/><origin xyz="0 0 0.1" rpy="0 0 0"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize('fixture', ['arm', 'arm3', 'slide'])
+def test_compiled_forward_kinematics_agree_with_numpy(fixture, request):
+    """Frames (so FK) and the Jacobian's smallest singular value, compiled, against the numpy
+    versions: 10 000 configurations, singular ones among them; no input type compiles anew."""
+    model = (kinematics.ArmModel.from_urdf_string(PRISMATIC_URDF) if fixture == 'slide'
+             else request.getfixturevalue(fixture))
+    assert model.load_fk(), 'the compiled forward kinematics did not load (numba is a requirement)'
+    rng = np.random.default_rng(7)
+    finite = np.isfinite(model.lower) & np.isfinite(model.upper)
+    Q = rng.uniform(np.where(finite, model.lower, -7.0), np.where(finite, model.upper, 7.0), (10_000, model.dof))
+    if model.dof == 6:
+        Q[:1000, 4] = 0.0                                      # singular wrists
+        Q[1000:2000, 2] = 0.0                                  # stretched elbows
+    assert model.joint_frames(Q) == pytest.approx(model._joint_frames_numpy(Q), rel=0.0, abs=1e-12)
+    sigma = model.min_singular_values(Q)
+    assert sigma == pytest.approx(model._min_singular_values_numpy(Q), rel=0.0, abs=1e-9)
+    if model.dof == 6:
+        assert sigma[:1000].max() < 1e-7                       # the singular wrists are found
+    ro = Q[:5].copy()
+    ro.flags.writeable = False
+    for q in (ro, np.asfortranarray(Q[:5]), Q[:5].round().astype(int), Q[0], Q[0].tolist()):
+        assert model.fk(q) == pytest.approx(model._joint_frames_numpy(np.atleast_2d(np.asarray(q, float)))[:, -1]
+                                            .reshape(np.shape(model.fk(q))), abs=1e-12)
+        model.min_singular_values(q)
+    kernels = model._fk_compiled
+    assert len(kernels.frames.func.signatures) == len(kernels.min_singular_values.func.signatures) == 1
+
+
+def test_forward_kinematics_without_numba_run_with_numpy(arm, monkeypatch):
+    q = np.array([[0.4, 0.3, 1.1, 0.5, 0.8, -0.6], [0.0, 0.2, 1.6, 0.0, 0.0, 0.0]])
+    compiled = arm.fk(q), arm.min_singular_values(q), arm.jacobian(q[0])
+    monkeypatch.setattr(arm, '_fk_compiled', None)
+    assert not arm.load_fk()
+    numpy = arm.fk(q), arm.min_singular_values(q), arm.jacobian(q[0])
+    for a, b in zip(compiled, numpy):
+        assert a == pytest.approx(b, abs=1e-12)
+    assert numpy[1][1] < 1e-9                                  # q5 = 0: the wrist is singular

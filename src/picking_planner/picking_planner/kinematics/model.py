@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -191,6 +193,15 @@ class ArmModel:
             ``[:, i]`` is joint i's frame in the base frame; ``[:, -1]`` the tool.
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
+        compiled = self._fk_compiled
+        if compiled is None or q.ndim != 2 or q.shape[1] != self.dof:
+            return self._joint_frames_numpy(q)
+        out = np.empty((q.shape[0], self.dof + 1, 4, 4))
+        compiled.frames(_plain_floats(q), out)
+        return out
+
+    def _joint_frames_numpy(self, q):
+        """:meth:`joint_frames` vectorised over N with numpy (without numba, and its reference)."""
         n = q.shape[0]
         out = np.empty((n, self.dof + 1, 4, 4))
         T = np.broadcast_to(np.eye(4), (n, 4, 4))
@@ -242,11 +253,13 @@ class ArmModel:
 
     def jacobians(self, q):
         """Geometric Jacobians for many configurations, shape (N, 6, dof)."""
-        q = np.atleast_2d(self.check_joints(q))
-        frames = self.joint_frames(q)
+        return self._jacobians(self.joint_frames(np.atleast_2d(self.check_joints(q))))
+
+    def _jacobians(self, frames):
+        """Jacobians from the frames of :meth:`joint_frames`, shape (N, 6, dof)."""
         z = np.einsum('nijk,ik->nij', frames[:, :-1, :3, :3], self._axes)      # (N, dof, 3)
         lever = frames[:, -1:, :3, 3] - frames[:, :-1, :3, 3]
-        J = np.zeros((q.shape[0], 6, self.dof))
+        J = np.zeros((frames.shape[0], 6, self.dof))
         rev = ~self._prismatic
         J[:, :3, rev] = np.swapaxes(np.cross(z[:, rev], lever[:, rev]), 1, 2)
         J[:, 3:, rev] = np.swapaxes(z[:, rev], 1, 2)
@@ -258,10 +271,49 @@ class ArmModel:
 
         Rows used: position and orientation for 6+ joints, position only otherwise.
         """
-        J = self.jacobians(q)
+        q = np.atleast_2d(self.check_joints(q))
+        compiled = self._fk_compiled
+        if compiled is None:
+            return self._min_singular_values_numpy(q)
+        out = np.empty(q.shape[0])
+        compiled.min_singular_values(_plain_floats(q), 6 if self.dof >= 6 else 3, out)
+        return out
+
+    def _min_singular_values_numpy(self, q):
+        J = self._jacobians(self._joint_frames_numpy(q))
         if self.dof < 6:
             J = J[:, :3]
         return np.linalg.svd(J, compute_uv=False)[:, -1]
+
+    @functools.cached_property
+    def _fk_compiled(self):
+        """The compiled chain kernels (:class:`.fast_fk.Bound`), or None.
+
+        Loaded on first use, and used only if they give the numpy versions' frames
+        and singular values for 64 configurations within the limits. None without
+        numba, or (with a warning) if numba cannot compile or cache them here.
+        """
+        try:
+            from . import fast_fk
+        except ImportError:
+            return None
+        except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: numpy answers
+            warnings.warn(f'the compiled forward kinematics did not load ({type(exc).__name__}: {exc}); '
+                          'they run vectorised with numpy', RuntimeWarning, stacklevel=2)
+            return None
+        bound = fast_fk.Bound(self)
+        rng = np.random.default_rng(0)
+        finite = np.isfinite(self.lower) & np.isfinite(self.upper)
+        Q = rng.uniform(np.where(finite, self.lower, -np.pi), np.where(finite, self.upper, np.pi), (64, self.dof))
+        frames, sigma = np.empty((64, self.dof + 1, 4, 4)), np.empty(64)
+        bound.frames(Q, frames)
+        bound.min_singular_values(Q, 6 if self.dof >= 6 else 3, sigma)
+        if not (np.allclose(frames, self._joint_frames_numpy(Q), rtol=0.0, atol=1e-12)
+                and np.allclose(sigma, self._min_singular_values_numpy(Q), rtol=0.0, atol=1e-9)):
+            warnings.warn('the compiled forward kinematics disagree with the numpy version on their self-test: '
+                          'they run vectorised with numpy', RuntimeWarning, stacklevel=2)
+            return None
+        return bound
 
     # -- inverse kinematics ------------------------------------------------
     def ik_all(self, T):
@@ -310,12 +362,18 @@ class ArmModel:
         return q[0]
 
     def load_ik(self):
-        """Load the compiled IK now (else the first :meth:`ik` or :meth:`ik_batch` call does).
+        """Load the compiled IK and forward kinematics now (else the first call that
+        needs them does).
 
-        Returns True if they run compiled, False if they run the vectorised
+        Returns True if IK runs compiled, False if it runs the vectorised
         solver (numba missing, or an arm without a closed form).
         """
+        self._fk_compiled
         return self._solver.compiled is not None
+
+    def load_fk(self):
+        """True if :meth:`joint_frames`, :meth:`fk` and :meth:`min_singular_values` run compiled."""
+        return self._fk_compiled is not None
 
     def ik_batch(self, T, seed=None):
         """IK for many poses at once.
