@@ -16,7 +16,6 @@ paper's examples); time is in seconds.
 from __future__ import annotations
 
 from bisect import bisect_left
-from math import comb
 
 import numpy as np
 
@@ -309,11 +308,17 @@ def taylor_shift(coeffs, dt):
     dt = np.asarray(dt, dtype=float)
     if dt.ndim == 1:
         dt = dt[:, None]
-    out = np.zeros_like(coeffs)
-    for k in range(_N_COEFFS):
-        for i in range(k, _N_COEFFS):
-            out[:, k] += comb(i, k) * coeffs[:, i] * dt ** (i - k)
-    return out
+    # Repeated synthetic division (Horner's scheme): 15 fused steps instead of the
+    # binomial sum's 21 terms of powers and products.
+    # (Coefficient-major, so that every step runs over contiguous memory.)
+    c = np.array(np.moveaxis(np.asarray(coeffs, dtype=float), 1, 0), order='C')
+    step = np.empty(np.broadcast_shapes(c[0].shape, dt.shape))
+    degree = c.shape[0] - 1
+    for i in range(degree):
+        for j in range(degree - 1, i - 1, -1):
+            np.multiply(c[j + 1], dt, out=step)
+            c[j] += step
+    return np.moveaxis(c, 0, 1)
 
 
 def merge_joint_pieces(joint_breaks, joint_coeffs, rtol=1e-12):
