@@ -280,7 +280,7 @@ class Planner:
             stop = trajectory.time_optimal_stop(q, qd, qdd, np.minimum(vmax, 1e3), np.minimum(amax, 1e4),
                                                 np.minimum(_full_jerk(self.arm), 1e5))
             p, v, a = stop.sample(np.linspace(0.0, stop.duration, 201))
-            if np.all(np.abs(v) <= vmax + 1e-9) and np.all(np.abs(a) <= amax + 1e-9) and \
+            if (np.abs(v) <= vmax + 1e-9).all() and (np.abs(a) <= amax + 1e-9).all() and \
                     self.arm.within_limits(p).all():
                 return stop, stop.end_state()[0]
         except ValueError:
@@ -293,8 +293,8 @@ class Planner:
             if first is None:
                 first = stop
             p, v, a = stop.sample(np.linspace(0.0, stop.duration, 101))
-            if np.all(np.abs(v) <= np.maximum(vmax, np.abs(qd)) + 1e-9) and \
-                    np.all(np.abs(a) <= np.maximum(amax, np.abs(qdd)) + 1e-9) and self.arm.within_limits(p).all():
+            if (np.abs(v) <= np.maximum(vmax, np.abs(qd)) + 1e-9).all() and \
+                    (np.abs(a) <= np.maximum(amax, np.abs(qdd)) + 1e-9).all() and self.arm.within_limits(p).all():
                 break
         else:
             stop = first
@@ -544,7 +544,7 @@ class Planner:
                     # The timing alone first (microseconds): the trajectory is built and
                     # checked only once its blends fit and its lines keep the speed limit.
                     _, vel = trajectory.via_lspb_timing(qs, durations, self._amax)
-                    if np.any(np.abs(vel) > self.arm.max_velocity + 1e-6):
+                    if (np.abs(vel) > self.arm.max_velocity + 1e-6).any():
                         raise ValueError('a line is faster than the velocity limit')
                     traj = trajectory.via_lspb(qs, durations, self._amax)
                 else:

@@ -13,7 +13,7 @@ def as_point(p, name: str) -> np.ndarray:
         raise ValueError(f'{name} must be three numbers (x, y, z)') from exc
     if arr.shape != (3,):
         raise ValueError(f'{name} must be three numbers (x, y, z), got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f'{name} must be finite, got {arr.tolist()}')
     return arr
 
@@ -23,7 +23,7 @@ def as_lengths(s) -> np.ndarray:
     arr = np.array(s, dtype=float)
     if arr.ndim == 0:
         arr = arr.reshape(1)
-    if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+    if arr.ndim != 1 or not np.isfinite(arr).all():
         raise ValueError('path parameter s must be a finite number or 1-D sequence')
     return arr
 

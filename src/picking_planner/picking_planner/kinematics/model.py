@@ -170,7 +170,7 @@ class ArmModel:
         if arr.shape[-1:] != (self.dof,) or arr.ndim > 2:
             raise ValueError(f'{what} must have {self.dof} joint values (shape (dof,) or (N, dof)), '
                              f'got shape {arr.shape}')
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             raise ValueError(f'{what} must be finite')
         return arr
 

@@ -179,7 +179,7 @@ def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6, names=None):
     if t.ndim != 1 or any(a.shape != (t.size, len(names)) for a in arrays):
         raise ValueError(f'check_joint_limits needs times (N,) and joint values (N, {len(names)}), got '
                          f'{t.shape} and {[a.shape for a in arrays]}')
-    if not (np.all(np.isfinite(t)) and all(np.all(np.isfinite(a)) for a in arrays)):
+    if not (np.isfinite(t).all() and all(np.isfinite(a).all() for a in arrays)):
         raise ValueError('check_joint_limits needs finite times and joint values')
     q, qd, qdd = arrays
     lower, upper, vmax, amax = limits

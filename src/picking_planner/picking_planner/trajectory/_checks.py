@@ -30,7 +30,7 @@ def as_joint_vector(x, name: str, n: int | None = None) -> np.ndarray:
         raise ValueError(f'{name} must be a number or a non-empty 1-D sequence, got shape {arr.shape}')
     if n is not None and arr.size != n:
         raise ValueError(f'{name} has {arr.size} values, expected {n} (one per joint)')
-    if not np.all(np.abs(arr) <= MAX_MAGNITUDE):
+    if not (np.abs(arr) <= MAX_MAGNITUDE).all():
         raise ValueError(f'{name} must be finite and within ±{MAX_MAGNITUDE:g}, got {arr.tolist()}')
     return arr
 
@@ -82,7 +82,7 @@ def as_points(points, name: str = 'points', min_points: int = 2) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[0] < min_points or arr.shape[1] < 1:
         raise ValueError(f'{name} must have at least {min_points} rows of joint positions, '
                          f'got shape {arr.shape}')
-    if not np.all(np.abs(arr) <= MAX_MAGNITUDE):
+    if not (np.abs(arr) <= MAX_MAGNITUDE).all():
         raise ValueError(f'{name} must be finite and within ±{MAX_MAGNITUDE:g}')
     return arr
 
@@ -97,7 +97,7 @@ def as_durations(durations, m: int) -> np.ndarray:
         arr = np.full(m, float(arr))
     if arr.ndim != 1 or arr.size != m:
         raise ValueError(f'durations must have one value per segment ({m}), got shape {arr.shape}')
-    if not np.all((arr >= MIN_DURATION) & (arr <= MAX_DURATION)):
+    if not ((arr >= MIN_DURATION) & (arr <= MAX_DURATION)).all():
         raise ValueError(f'durations must be between {MIN_DURATION:g} and {MAX_DURATION:g} s, got {arr.tolist()}')
     return arr
 

@@ -25,7 +25,7 @@ _RTOL = 1e-9
 
 def _accel(accel, n):
     a = as_joint_vector(accel, 'accel', n)
-    if np.any(a <= 0.0):
+    if (a <= 0.0).any():
         raise ValueError(f'accel must be > 0 (a magnitude, unit/s^2), got {a.tolist()}')
     return a
 
@@ -248,7 +248,7 @@ def _via_timing(points, td, a):
     vel = dq / td[:, None]
     for end, k in (('first', 0), ('last', m - 1)):
         disc = td[k] ** 2 - 2.0 * np.abs(dq[k]) / a
-        if np.any(disc < -_RTOL * td[k] ** 2):
+        if (disc < -_RTOL * td[k] ** 2).any():
             j = int(np.argmin(disc))
             raise ValueError(
                 f'accel {a[j]:.6g} is too small for the {end} segment of joint {j}: '
@@ -261,7 +261,7 @@ def _via_timing(points, td, a):
     linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
     linear[0] -= 0.5 * tb[0]
     linear[-1] -= 0.5 * tb[-1]
-    if np.any(linear < -_RTOL * td[:, None]):
+    if (linear < -_RTOL * td[:, None]).any():
         k, j = np.unravel_index(int(np.argmin(linear)), linear.shape)
         need = td[k] - linear[k, j]
         raise ValueError(

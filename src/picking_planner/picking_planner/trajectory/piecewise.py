@@ -69,9 +69,9 @@ class PiecewisePolynomial:
                 f'got {coeffs.shape}')
         if not 1 <= coeffs.shape[1] <= _N_COEFFS or coeffs.shape[2] < 1:
             raise ValueError(f'polynomial degree must be 0..{MAX_DEGREE} and n_joints >= 1')
-        if not (np.all(np.isfinite(breaks)) and np.all(np.isfinite(coeffs))):
+        if not (np.isfinite(breaks).all() and np.isfinite(coeffs).all()):
             raise ValueError('breaks and coeffs must be finite')
-        if np.any(np.diff(breaks) <= 0.0):
+        if (np.diff(breaks) <= 0.0).any():
             raise ValueError('breaks must be strictly increasing')
         padded = np.zeros((coeffs.shape[0], _N_COEFFS, coeffs.shape[2]))
         padded[:, :coeffs.shape[1], :] = coeffs
@@ -160,7 +160,7 @@ class PiecewisePolynomial:
             rows = np.matmul(powers[:, None, :], self._stacked[k])[:, 0, :].T
         else:
             order, ts = None, t
-            if t.size > 1 and np.any(t[1:] < t[:-1]):
+            if t.size > 1 and (t[1:] < t[:-1]).any():
                 order = np.argsort(t, kind='stable')
                 ts = t[order]
             # Times before the start fall in the first segment, after the end in the last
