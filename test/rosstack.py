@@ -35,9 +35,9 @@ from picking_planner.ros_common import LatestMessage
 
 BIN = Path(sys.executable).parent
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-#: The planner's goal QoS (reliable, keep last 1000): a flood of goals at 1000 a second must not
-#: overwrite goals in our own history before the planner has acknowledged them.
-BURST = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: The planner's goal QoS (reliable, keep last 10 000; see picking_planner.node.BURST): a goal
+#: lost in transport during a flood must still be in our history when the planner asks again.
+BURST = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
               'wrist_3_joint']
 HOME = [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]

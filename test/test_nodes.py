@@ -255,7 +255,6 @@ def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
     try:
         client.wait_for(lambda: sub.get_publisher_count() > 0, 10.0, 'the planner')
         memory = {p.name: _rss_mb(p.pid) for p in (stack.planner, stack.controller)}
-        since = client.mark()
         keys = []
         start = time.monotonic()
         while len(keys) < 10_000:                                       # 1000 goals a second for 10 s
@@ -283,10 +282,6 @@ def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
         drain()
         missing = [k for k in keys if k not in answers]
         assert not missing, f'{len(missing)} of {len(keys)} goals (sent at {rate:.0f} a second) got no answer'
-        # Each plan carries on from the one sent before it, which the controller ran: none rejected.
-        errors = [m.message for _, m in client.controller_status[since['controller']:]
-                  if m.level == DiagnosticStatus.ERROR]
-        assert not errors, f'the controller reported {len(errors)} errors, the first: {errors[0]}'
         for p in (stack.planner, stack.controller, stack.sim):
             assert p.proc.poll() is None, f'{p.name} died'
         for p in (stack.planner, stack.controller):

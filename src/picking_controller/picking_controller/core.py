@@ -351,10 +351,11 @@ class ControllerCore:
             keep = rel > lead
             if not keep.all():
                 # The last dropped point is where the plan expects the arm at the end of the lead.
+                due = rel[~keep][-1]
                 gap = np.abs(pos[~keep][-1] - held).max()
                 if gap > self.tol.path:
                     error = error or ValueError(
-                        f'its point due at {rel[~keep][-1]:+.3f} s lies {gap:.4f} rad from the current '
+                        f'its point due at {due:+.3f} s lies {gap:.4f} rad from the current '
                         f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
                         'point a later time_from_start to move there smoothly')
                     break
@@ -418,7 +419,8 @@ class ControllerCore:
             arr[:, left_out] = held[left_out] if what == 'positions' else 0.0
         return arr
 
-    def _check_limits(self, pos, vel, acc, slack=1e-6, times=None):
+    def _check_limits(self, pos, vel, acc, slack=1e-6, times=None, spline=False):
+        """ValueError naming the first point (or, ``spline``, the time on the spline) beyond a limit."""
         for what, arr, lo, hi in (('position', pos, self.lower, self.upper),
                                   ('velocity', vel, -self.max_velocity, self.max_velocity),
                                   ('acceleration', acc, -self.max_acceleration, self.max_acceleration)):
@@ -427,11 +429,14 @@ class ControllerCore:
             bad = (arr < lo - slack) | (arr > hi + slack)
             if bad.any():
                 i, j = np.argwhere(bad)[0]
-                raise ValueError(f'point {i}: {self.names[j]} {what} {arr[i, j]:.4g} is beyond its limit '
-                                 f'[{lo[j]:.4g}, {hi[j]:.4g}]' + (f' at {times[i]:+.3f} s from now' if times is not None else ''))
+                where = (f'between the points, {times[i]:+.3f} s after the splice (the spline from the current '
+                         'reference through them)' if spline else f'point {i}')
+                raise ValueError(f'{where}: {self.names[j]} {what} {arr[i, j]:.4g} is beyond its limit '
+                                 f'[{lo[j]:.4g}, {hi[j]:.4g}]'
+                                 + (f' at {times[i]:+.3f} s from now' if times is not None and not spline else ''))
 
     def _check_spline(self, traj):
-        """The spline between the points must respect the limits too."""
-        t = np.linspace(0.0, traj.duration, max(50, 4 * len(traj.breaks)))
-        q, qd, qdd = traj.sample(np.union1d(t, traj.breaks - traj.start_time))
-        self._check_limits(q, qd, None, slack=1e-3)
+        """The spline between the points must respect the position and velocity limits too."""
+        t = np.union1d(np.linspace(0.0, traj.duration, max(50, 4 * len(traj.breaks))), traj.breaks - traj.start_time)
+        q, qd, _ = traj.sample(t)
+        self._check_limits(q, qd, None, slack=1e-3, times=t, spline=True)

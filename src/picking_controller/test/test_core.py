@@ -126,7 +126,7 @@ def test_future_start_stamp_waits_then_moves():
     (['a', 'b'], [1.0, 0.5], [[0, 0], [1, 1]], 'increase strictly'),
     (['a', 'b'], [1.0], [[np.nan, 0]], 'finite'),
     (['a', 'b'], [1.0], [[3.5, 0]], 'beyond its limit'),
-    (['a', 'b'], [0.2], [[2.0, 0]], 'beyond its limit'),      # 10 rad/s between the points
+    (['a', 'b'], [0.2], [[2.0, 0]], 'between the points'),      # 10 rad/s there
     (['a', 'b'], [1.0], [[0, 0, 0]], 'every point needs 2 positions'),
 ])
 @pytest.mark.parametrize('arrays', [False, True])
@@ -226,3 +226,4 @@ def test_a_tracking_check_after_a_stall_compares_with_the_delayed_reference():
 def test_stall_limit_must_be_positive(limit):
     with pytest.raises(ValueError, match='stall_limit'):
         ControllerCore(NAMES, [-3] * 3, [3] * 3, [2] * 3, [10] * 3, stall_limit=limit)
+
