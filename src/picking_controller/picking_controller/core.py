@@ -329,7 +329,7 @@ class ControllerCore:
         if not self.feedback_ok:
             raise ValueError('feedback lost: no joint_states; refusing to move blind')
         order = self._order(joint_names)
-        ref = self._reference_at(now)
+        ref = self._commanded(*self._reference_at(now))
         held = ref[0]
         times = np.asarray(times, float)
         m = times.size
@@ -372,6 +372,17 @@ class ControllerCore:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}))
+
+    def _commanded(self, q, qd, qdd):
+        """A reference state held within the limits, as :meth:`command` sends it: what a new
+        trajectory is spliced onto. (A reference beyond a limit, led in too hard before, would
+        make every lead-in from it break the limit at once: the arm could take no new trajectory.)
+        A joint at a position limit stops there; one at its speed limit stops accelerating past it."""
+        lo, hi, vmax, amax = self.lower, self.upper, self.max_velocity, self.max_acceleration
+        q1 = np.minimum(np.maximum(q, lo), hi)
+        qd1 = np.where(((q1 <= lo) & (qd < 0)) | ((q1 >= hi) & (qd > 0)), 0.0, np.minimum(np.maximum(qd, -vmax), vmax))
+        outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
+        return q1, qd1, np.where(outward, 0.0, np.minimum(np.maximum(qdd, -amax), amax))
 
     def _reference_at(self, t):
         """The reference at clock time ``t`` as things stand (a scheduled trajectory

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from picking_controller.core import ControllerCore, Tolerances
+from picking_planner.trajectory import PiecewisePolynomial
 
 NAMES = ['a', 'b', 'gripper']
 INF = np.inf
@@ -227,3 +228,25 @@ def test_stall_limit_must_be_positive(limit):
     with pytest.raises(ValueError, match='stall_limit'):
         ControllerCore(NAMES, [-3] * 3, [3] * 3, [2] * 3, [10] * 3, stall_limit=limit)
 
+
+
+def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
+    """A lead-in led in too hard once left the reference a little beyond the speed limit (the command
+    was limited): a new trajectory is spliced onto the state commanded, within the limits, instead of
+    being refused for a lead-in that starts beyond the limit."""
+    c = core()
+    coeffs = np.zeros((1, 6, 3))
+    coeffs[0, 1, 0], coeffs[0, 2, 0] = 2.05, 0.5          # a at 2.05 rad/s (limit 2), still speeding up
+    coeffs[0, 0, 2] = 0.05
+    c._set(PiecewisePolynomial([0.0, 3.0], coeffs), 0.0)
+    c.mode = 'moving'
+    now = 0.5
+    q0 = c.reference(now)[0][0]
+    times = np.arange(0.1, 0.6, 0.01)
+    speed = 1.9
+    pos = np.stack([q0 + 0.195 + speed * (times - 0.1), np.zeros_like(times)], axis=1)
+    vel = np.stack([np.full_like(times, speed), np.zeros_like(times)], axis=1)
+    ev = c.load(['a', 'b'], times, pos, vel, np.zeros_like(pos), 0.0, now=now)
+    assert ev.level == 'OK', ev.message
+    v = np.array([c.reference(now + k * 1e-3)[1][0] for k in range(200)])
+    assert v.max() <= 2.0 + 1e-3
