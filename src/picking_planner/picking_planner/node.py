@@ -68,6 +68,43 @@ def msg_pose(pose):
     return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
 
 
+def plan_active(sent, t):
+    """The entry of ``sent`` (``(trajectory, start time, joint names)``, oldest first) that
+    runs at time ``t``: the newest one started by then, or None."""
+    for plan in reversed(sent):
+        if plan[1] <= t:
+            return plan
+    return None
+
+
+def carried_points(sent, t_from, t_until, period, names):
+    """The motion of the plans ``sent`` from ``t_from`` to just before ``t_until``, every
+    ``period`` s: ``(t - t_from, q, qd, qdd)`` for the joints ``names``, or None when a
+    plan running then lacks one of them (or there is less than half a period to carry).
+
+    A plan is carried on from the state of the plan sent before it at its start time.
+    The controller takes only the newest of the trajectories waiting for it: when a plan
+    reaches it while the one it carries on from still waits, that one is never run, and
+    the new plan would start from a state the arm never reaches. So each trajectory sent
+    carries the plans it carries on from, from the start of the first one the controller
+    is not yet seen to run: taken or not, the controller then runs the same motion.
+    """
+    # (The last point at least half a period before ``t_until``: no sliver of a segment.)
+    times = t_from + np.arange(max(int(np.ceil((t_until - t_from) / period - 0.5)), 0)) * period
+    rows = []
+    for t in times:
+        traj, t0, plan_names = plan_active(sent, t)
+        try:
+            cols = [plan_names.index(n) for n in names]
+        except ValueError:
+            return None
+        rows.append([x[cols] for x in traj.state_at(t - t0)])
+    if not rows:
+        return None
+    q, qd, qdd = (np.array(x) for x in zip(*rows))
+    return times - t_from, q, qd, qdd
+
+
 def stamp_key(stamp):
     return f'{stamp.sec}.{stamp.nanosec:09d}'
 
@@ -106,7 +143,7 @@ class PlannerNode(Node):
         self.lock = threading.Lock()
         self.pending = []             # goals that came before the first joint_states
         self._planning_time = {}      # kind of goal -> s its last planning took
-        self._sent = deque(maxlen=SENT_KEPT)   # (trajectory, its start time) of the last plans sent
+        self._sent = deque(maxlen=SENT_KEPT)   # (trajectory, start time, joint names) of the last plans sent
         self.create_timer(0.1, self._serve_pending)
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
         # message classes) where this middleware reads them back as the same messages.
@@ -198,7 +235,7 @@ class PlannerNode(Node):
         return q, qd, qdd, stamp
 
     def start_state(self, delay, reference, measured):
-        """Where the plan starts: ``(q, qd, qdd), source, start time``.
+        """Where the plan starts: ``(q, qd, qdd), source, start time, carry from``.
 
         The plan starts ``delay`` s from now and the trajectory is stamped to
         start then, so planning and delivery time never make the arm jump and
@@ -213,31 +250,27 @@ class PlannerNode(Node):
         client's trajectory, a catch-up lead-in, a stalled controller), held
         within the limits. Without a reference, the measured state, at rest.
         ``reference`` and ``measured`` (from :meth:`measured`) are snapshots
-        taken when the goal came.
+        taken when the goal came. ``carry from``: when the plan carries on from
+        plans that start after the reference's stamp (the controller may not
+        run them: see :func:`carried_points`), the first one's start; else None.
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
             q, qd, qdd, stamp = reference
-            then = self._plan_active(stamp) if stamp > 0 else None
+            then = plan_active(self._sent, stamp) if stamp > 0 else None
             n = q.size
             if then is not None and np.abs(then[0].state_at(stamp - then[1])[0][:n] - q).max() < FOLLOWING:
-                plan, t0 = self._plan_active(t_start) or then
-                return tuple(x[:n].copy() for x in plan.state_at(t_start - t0)), 'reference', t_start
+                plan, t0, _ = plan_active(self._sent, t_start) or then
+                unseen = [p[1] for p in self._sent if stamp < p[1] < t_start]
+                return tuple(x[:n].copy() for x in plan.state_at(t_start - t0)), 'reference', t_start, \
+                    min(unseen, default=None)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), \
-                'reference', t_start
+                'reference', t_start, None
         if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]
-        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start
-
-    def _plan_active(self, t):
-        """``(trajectory, start time)`` of the sent plan that runs at time ``t`` (the newest
-        one started by then), or None."""
-        for plan in reversed(self._sent):
-            if plan[1] <= t:
-                return plan
-        return None
+        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start, None
 
     # -- goals ---------------------------------------------------------------------------
     def _check_frame(self, header):
@@ -359,7 +392,7 @@ class PlannerNode(Node):
                 delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, FIRST_PLANNING[kind])
                 ref = self._reference()
                 for _ in range(4):
-                    start, source, t_start = self.start_state(delay, ref, measured)
+                    start, source, t_start, carry_from = self.start_state(delay, ref, measured)
                     plan = plan_fn(start, measured[1])
                     if self.get_clock().now().nanoseconds * 1e-9 < t_start - DELIVERY:
                         break
@@ -369,16 +402,25 @@ class PlannerNode(Node):
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
         self._planning_time[kind] = planning_ms * 1e-3
-        points = plan.samples(self.planner.settings.sample_period)
+        names = list(plan.joint_names or self.names)
+        period = self.planner.settings.sample_period
+        own = points = plan.samples(period)
+        stamp = t_start
+        carried = None if carry_from is None else carried_points(self._sent, carry_from, t_start, period, names)
+        if carried is not None:
+            # The plans this one carries on from, as far as the controller may not have them.
+            points = (np.concatenate([carried[0], own[0] + (t_start - carry_from)]),
+                      *(np.concatenate([c, o]) for c, o in zip(carried[1:], own[1:])))
+            stamp = carry_from
         try:
             # Checked as the controller will check it: a plan it would reject is never sent as accepted.
-            check_joint_limits(self.arm, *points, names=list(plan.joint_names or self.names))
+            check_joint_limits(self.arm, *points, names=names)
         except Unreachable as exc:
             self._refuse(kind, key, f'the plan breaks a limit (from a {source} start: the arm\'s motion cannot '
                                     f'be carried on within it): {exc}')
             return
-        self._publish_trajectory(list(plan.joint_names or self.names), t_start, points)
-        self._sent.append((plan.trajectory, t_start))
+        self._publish_trajectory(names, stamp, points)
+        self._sent.append((plan.trajectory, t_start, names))
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
         self._answer(status(
@@ -386,7 +428,7 @@ class PlannerNode(Node):
             goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
             segments=segments, planning_ms=planning_ms, **getattr(plan, 'extra', {})))
-        self._publish_tool_path(points[1])
+        self._publish_tool_path(own[1])
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
     def _controller_listens(self, wait=5.0):
