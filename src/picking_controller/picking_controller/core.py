@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from picking_planner.trajectory import PiecewisePolynomial, brake, hold
+from picking_planner.trajectory import PiecewisePolynomial, brake, held_within_limits, hold
 
 from .sampler import from_points
 
@@ -378,11 +378,7 @@ class ControllerCore:
         trajectory is spliced onto. (A reference beyond a limit, led in too hard before, would
         make every lead-in from it break the limit at once: the arm could take no new trajectory.)
         A joint at a position limit stops there; one at its speed limit stops accelerating past it."""
-        lo, hi, vmax, amax = self.lower, self.upper, self.max_velocity, self.max_acceleration
-        q1 = np.minimum(np.maximum(q, lo), hi)
-        qd1 = np.where(((q1 <= lo) & (qd < 0)) | ((q1 >= hi) & (qd > 0)), 0.0, np.minimum(np.maximum(qd, -vmax), vmax))
-        outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
-        return q1, qd1, np.where(outward, 0.0, np.minimum(np.maximum(qdd, -amax), amax))
+        return held_within_limits(q, qd, qdd, self.lower, self.upper, self.max_velocity, self.max_acceleration)
 
     def _reference_at(self, t):
         """The reference at clock time ``t`` as things stand (a scheduled trajectory

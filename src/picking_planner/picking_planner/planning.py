@@ -187,14 +187,8 @@ def feasible_start(arm, q, qd, qdd):
     its velocity limit stops accelerating beyond it; accelerations are clipped. (The
     controller's lead-in absorbs the small difference from its real reference.)
     """
-    lo, hi = arm.lower, arm.upper
-    vmax, amax = arm.max_velocity, arm.max_acceleration
-    q1 = np.clip(q, lo, hi)
-    stopped = ((q <= lo) & (qd < 0)) | ((q >= hi) & (qd > 0))
-    qd1 = np.where(stopped, 0.0, np.clip(qd, -vmax, vmax))
-    outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | \
-        ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
-    qdd1 = np.where(outward, 0.0, np.clip(qdd, -amax, amax))
+    vmax = arm.max_velocity
+    q1, qd1, qdd1 = trajectory.held_within_limits(q, qd, qdd, arm.lower, arm.upper, vmax, arm.max_acceleration)
     # Speeding up, a joint gains a^2 / 2j more speed before the jerk limit lets its
     # acceleration reach zero: no more than it has left below its speed limit.
     room = np.sqrt(2.0 * _full_jerk(arm) * np.maximum(vmax - np.abs(qd1), 0.0))

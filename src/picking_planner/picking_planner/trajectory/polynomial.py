@@ -133,6 +133,19 @@ def quintic(q0, qf, duration, v0=0.0, vf=0.0, a0=0.0, af=0.0):
     return _single(hermite_coeffs(q0, v0, a0, qf, vf, af, duration), duration)
 
 
+def held_within_limits(q, qd, qdd, lower, upper, max_velocity, max_accel):
+    """A state ``(q, qd, qdd)`` held within position, velocity and acceleration limits, as a
+    controller commands it: a joint at a position limit stops there; one at its speed limit
+    stops accelerating past it; accelerations are clipped. Arrays of shape (n_joints,).
+    """
+    lo, hi, vmax, amax = lower, upper, max_velocity, max_accel
+    q1 = np.minimum(np.maximum(q, lo), hi)
+    stopped = ((q1 <= lo) & (qd < 0)) | ((q1 >= hi) & (qd > 0))
+    qd1 = np.where(stopped, 0.0, np.minimum(np.maximum(qd, -vmax), vmax))
+    outward = ((q1 <= lo) & (qdd < 0)) | ((q1 >= hi) & (qdd > 0)) | ((np.abs(qd1) >= vmax) & (qdd * qd1 > 0))
+    return q1, qd1, np.where(outward, 0.0, np.minimum(np.maximum(qdd, -amax), amax))
+
+
 def brake(q, qd, qdd, max_accel, min_duration=0.05):
     """Bring a moving state to rest smoothly: a quintic from ``(q, qd, qdd)`` to rest.
 
