@@ -37,6 +37,7 @@ from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
 from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
                          status, status_values)
+from .sent_plans import carried_points, plan_active
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -66,43 +67,6 @@ def msg_pose(pose):
     """4x4 matrix from a geometry_msgs/Pose; ValueError for NaN or a zero quaternion."""
     p, o = pose.position, pose.orientation
     return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
-
-
-def plan_active(sent, t):
-    """The entry of ``sent`` (``(trajectory, start time, joint names)``, oldest first) that
-    runs at time ``t``: the newest one started by then, or None."""
-    for plan in reversed(sent):
-        if plan[1] <= t:
-            return plan
-    return None
-
-
-def carried_points(sent, t_from, t_until, period, names):
-    """The motion of the plans ``sent`` from ``t_from`` to just before ``t_until``, every
-    ``period`` s: ``(t - t_from, q, qd, qdd)`` for the joints ``names``, or None when a
-    plan running then lacks one of them (or there is less than half a period to carry).
-
-    A plan is carried on from the state of the plan sent before it at its start time.
-    The controller takes only the newest of the trajectories waiting for it: when a plan
-    reaches it while the one it carries on from still waits, that one is never run, and
-    the new plan would start from a state the arm never reaches. So each trajectory sent
-    carries the plans it carries on from, from the start of the first one the controller
-    is not yet seen to run: taken or not, the controller then runs the same motion.
-    """
-    # (The last point at least half a period before ``t_until``: no sliver of a segment.)
-    times = t_from + np.arange(max(int(np.ceil((t_until - t_from) / period - 0.5)), 0)) * period
-    rows = []
-    for t in times:
-        traj, t0, plan_names = plan_active(sent, t)
-        try:
-            cols = [plan_names.index(n) for n in names]
-        except ValueError:
-            return None
-        rows.append([x[cols] for x in traj.state_at(t - t0)])
-    if not rows:
-        return None
-    q, qd, qdd = (np.array(x) for x in zip(*rows))
-    return times - t_from, q, qd, qdd
 
 
 def stamp_key(stamp):

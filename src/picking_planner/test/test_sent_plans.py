@@ -1,10 +1,10 @@
-"""The planner node's pure helpers: which sent plan runs when, and what a new plan carries."""
+"""The planner's sent plans: which one runs when, and what a new plan carries (sent_plans.py)."""
 
 import numpy as np
 import pytest
 
 from picking_planner import trajectory
-from picking_planner.node import carried_points, plan_active
+from picking_planner.sent_plans import carried_points, plan_active
 
 ARM = ['a', 'b']
 
