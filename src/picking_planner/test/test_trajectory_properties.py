@@ -170,6 +170,14 @@ def test_sample_shapes_and_holding_outside_the_trajectory():
     assert q[0] == pytest.approx([0.0, 1.0, 2.0]) and q[-1] == pytest.approx([1.0, 2.0, 3.0])
     assert np.all(qd[[0, -1]] == 0.0)
     assert seg.sample(0.5)[0].shape == (1, 3)
+    assert seg.sample([])[0].shape == (0, 3)
+
+
+@pytest.mark.parametrize('bad', [np.nan, np.inf, -np.inf])
+def test_non_finite_sample_times_are_a_value_error(bad):
+    seg = trajectory.quintic([0.0, 1.0], [1.0, 2.0], 2.0)
+    with pytest.raises(ValueError, match='t must be finite'):
+        seg.sample([0.0, bad, 1.0])
 
 
 

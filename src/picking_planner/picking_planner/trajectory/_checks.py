@@ -57,6 +57,14 @@ def as_duration(duration, name: str = 'duration') -> float:
 
 def as_time_array(t) -> np.ndarray:
     """Sample times as a finite 1-D float array."""
+    return time_array_and_extremes(t)[0]
+
+
+def time_array_and_extremes(t):
+    """Sample times as a finite 1-D float array, with its smallest and largest values
+    (``nan`` for no times): the two passes over the times that the finiteness check costs,
+    shared with a sampler that needs the extremes too.
+    """
     try:
         arr = np.asarray(t, dtype=float)            # not copied: only read
     except (TypeError, ValueError) as exc:
@@ -65,10 +73,13 @@ def as_time_array(t) -> np.ndarray:
         arr = arr.reshape(1)
     if arr.ndim != 1:
         raise ValueError(f't must be a number or a 1-D sequence, got shape {arr.shape}')
+    if not arr.size:
+        return arr, np.nan, np.nan
     # The extremes are NaN if any time is (and infinite if any is): no mask as long as t.
-    if arr.size and not (np.isfinite(arr.min()) and np.isfinite(arr.max())):
+    lo, hi = float(arr.min()), float(arr.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)):
         raise ValueError('t must be finite')
-    return arr
+    return arr, lo, hi
 
 
 def as_points(points, name: str = 'points', min_points: int = 2) -> np.ndarray:

@@ -19,7 +19,7 @@ from bisect import bisect_left
 
 import numpy as np
 
-from ._checks import as_duration, as_joint_vector, as_time_array
+from ._checks import as_duration, as_joint_vector, as_time_array, time_array_and_extremes
 
 #: Largest polynomial degree stored (quintic).
 MAX_DEGREE = 5
@@ -140,7 +140,7 @@ class PiecewisePolynomial:
         (q, qd, qdd) coefficients, a cache-sized chunk at a time. Sorted times
         are the fast path.
         """
-        t = as_time_array(t)
+        t, t_min, t_max = time_array_and_extremes(t)
         breaks = self._breaks
         n = self.n_joints
         rows = np.empty((3 * n, t.size))
@@ -175,7 +175,7 @@ class PiecewisePolynomial:
                 rows = unsorted
         out = rows.T
         q, qd, qdd = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
-        if t.size and (t.min() < breaks[0] or t.max() > breaks[-1]):
+        if t_min < breaks[0] or t_max > breaks[-1]:
             outside = (t < breaks[0]) | (t > breaks[-1])
             qd[outside] = 0.0
             qdd[outside] = 0.0
