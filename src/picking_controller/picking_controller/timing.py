@@ -15,6 +15,7 @@ import numpy as np
 
 BIN = 1e-6          # s per histogram bin
 BINS = 100_000      # errors of 100 ms and more share the last bin
+SCAN_BLOCK = 1024   # bins summed per numpy call when the percentiles are looked up
 
 
 class LoopStats:
@@ -65,21 +66,43 @@ class LoopStats:
 
     def percentile(self, p):
         """The ``p``-th percentile of the period error, s (bin resolution 1 µs)."""
+        return self.percentiles(p)[0]
+
+    def percentiles(self, *ps):
+        """The ``ps``-th percentiles of the period error, s, found in one scan of the histogram.
+
+        The scan runs a block of bins at a time from the small errors up and stops at the
+        last percentile: each numpy call is a few microseconds, so the loop thread, waiting
+        for the GIL while this runs in another thread, is not held up. (One cumulative sum
+        over all 100 000 bins held it for 0.1-0.4 ms at every report.)
+        """
         if self.ticks == 0:
-            return math.nan
-        rank = p / 100.0 * self.ticks
-        cumulative = np.cumsum(np.frombuffer(self.counts, dtype=np.int64))
-        return (int(np.searchsorted(cumulative, max(rank, 1))) + 0.5) * BIN
+            return [math.nan] * len(ps)
+        wanted = sorted((max(p / 100.0 * self.ticks, 1), i) for i, p in enumerate(ps))
+        counts = np.frombuffer(self.counts, dtype=np.int64)
+        out = [math.nan] * len(ps)
+        below = 0
+        for start in range(0, BINS, SCAN_BLOCK):
+            cumulative = np.cumsum(counts[start:start + SCAN_BLOCK])
+            cumulative += below
+            while wanted and cumulative[-1] >= wanted[0][0]:
+                rank, i = wanted.pop(0)
+                out[i] = (start + int(np.searchsorted(cumulative, rank)) + 0.5) * BIN
+            if not wanted:
+                break
+            below = int(cumulative[-1])
+        return out
 
     def summary(self):
         """A dict: ticks, achieved rate (Hz), period error p50/p99/max (µs), missed, CPU (% of one core)."""
         span = (self.last - self.first) if self.ticks else math.nan
         wall = time.monotonic() - self.wall_start
+        p50, p99 = self.percentiles(50, 99)
         return {
             'ticks': self.ticks,
             'rate_hz': self.ticks / span if self.ticks and span > 0 else math.nan,
-            'period_error_p50_us': self.percentile(50) * 1e6,
-            'period_error_p99_us': self.percentile(99) * 1e6,
+            'period_error_p50_us': p50 * 1e6,
+            'period_error_p99_us': p99 * 1e6,
             'period_error_max_us': self.worst * 1e6,
             'missed': self.missed,
             'missed_percent': 100.0 * self.missed / self.ticks if self.ticks else math.nan,

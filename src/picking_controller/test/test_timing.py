@@ -35,6 +35,26 @@ def test_a_lost_tick_is_missed_and_counted_in_the_tail():
     assert 'missed' in LoopStats.describe(s)
 
 
+@pytest.mark.parametrize('seed', [0, 1])
+def test_percentiles_match_numpy_on_the_same_errors(seed):
+    """Errors spread over many scan blocks, a far tail (90 ms) and the overflow bin (> 100 ms):
+    each percentile is the bin numpy's lower percentile of the binned errors falls in."""
+    stats = LoopStats(0.001)
+    rng = np.random.default_rng(seed)
+    errors = np.concatenate([rng.exponential(30e-6, 5000), rng.uniform(0.0, 0.09, 300), [0.2, 0.5]])
+    rng.shuffle(errors)
+    t = np.concatenate([[0.0], np.cumsum(0.001 + errors)])
+    for x in t:
+        stats.record(x)
+    binned = np.minimum(np.floor((np.diff(t) - 0.001) / 1e-6), 99_999)
+    ps = (0.01, 50, 90, 99, 99.9, 100)
+    got = stats.percentiles(*ps)
+    for p, value in zip(ps, got):
+        expected = (np.percentile(binned, p, method='inverted_cdf') + 0.5) * 1e-6
+        assert value == pytest.approx(expected, abs=1.01e-6), p
+    assert got[1] == stats.percentile(50)
+
+
 def test_reset_and_empty():
     stats = LoopStats(0.004)
     stats.record(0.0)
