@@ -25,7 +25,7 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from harness import fmt_time  # noqa: E402
 from rosstack import Client, Stack, ensure_rclpy  # noqa: E402
 
-from picking_planner.ros_common import LatestMessage  # noqa: E402
+from picking_planner.ros_common import SWITCH_INTERVAL, LatestMessage  # noqa: E402
 
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # Two reachable tool positions near the home pose, visited in turn.
@@ -220,8 +220,56 @@ print(s['period_error_p50_us'], s['period_error_p99_us'], s['period_error_max_us
 
 def bare_loop(seconds):
     """The machine's floor: a Python loop that only sleeps to 1 ms deadlines (nothing else running)."""
+    return _loop_figures(BARE_LOOP, seconds)
+
+
+CONTENDED_LOOP = """
+import os, random, sys, threading, time
+sys.path.insert(0, sys.argv[2])
+from picking_controller.timing import LoopStats
+from picking_planner.ros_common import SWITCH_INTERVAL
+sys.setswitchinterval(SWITCH_INTERVAL)
+period, seconds = 1e-3, float(sys.argv[1])
+stats = LoopStats(period)
+done = threading.Event()
+def loop():
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except (PermissionError, OSError):
+        pass
+    next_t = time.monotonic()
+    while not done.is_set():
+        stats.record(time.monotonic())
+        next_t += period
+        delay = next_t - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+thread = threading.Thread(target=loop)
+thread.start()
+end, x = time.monotonic() + seconds, 0
+while time.monotonic() < end:          # another thread of the process runs Python in bursts
+    burst = time.monotonic() + random.uniform(0.0, 2e-3)
+    while time.monotonic() < burst:
+        for i in range(100):
+            x += i * i
+    time.sleep(random.uniform(0.0, 2e-3))
+done.set()
+thread.join()
+s = stats.summary()
+print(s['period_error_p50_us'], s['period_error_p99_us'], s['period_error_max_us'], s['missed_percent'])
+"""
+
+
+def contended_loop(seconds):
+    """The GIL's share: the same loop while another thread of its process runs Python code in bursts
+    of up to 2 ms (the nodes' switch interval; the loop thread real-time where allowed)."""
+    return _loop_figures(CONTENDED_LOOP, seconds)
+
+
+def _loop_figures(script, seconds):
     import subprocess
-    out = subprocess.run([sys.executable, '-c', BARE_LOOP, str(seconds), str(ROOT / 'src' / 'picking_controller')],
+    out = subprocess.run([sys.executable, '-c', script, str(seconds), str(ROOT / 'src' / 'picking_controller'),
+                          str(ROOT / 'src' / 'picking_planner')],
                          capture_output=True, text=True, timeout=seconds + 30)
     p50, p99, worst, missed = map(float, out.stdout.split())
     return p50, p99, worst, missed
@@ -241,10 +289,13 @@ def run(quick=False, rows=(3, 4, 6)):
         seconds = 10 if quick else 60
         print(f'row 4: the controller at 1 kHz for {seconds} s with the simulator and the planner', flush=True)
         p50, p99, worst, missed = bare_loop(10)
+        c50, c99, _, c_missed = contended_loop(5)
         (figures,) = run_stacks(1, 1000.0, seconds)
         row = loop_row(figures, f'controller loop at 1 kHz for {seconds} s (simulator and planner running)')
         row[3] += (f'; floor: a bare Python sleep loop alone on this machine: p50 {p50:.0f} µs, p99 {p99:.0f} µs, '
-                   f'max {worst:.0f} µs, {missed:.2f} % missed')
+                   f'max {worst:.0f} µs, {missed:.2f} % missed; the same loop while another thread of its '
+                   f'process runs Python (GIL switch interval {SWITCH_INTERVAL * 1e6:.0f} µs): p50 {c50:.0f} µs, '
+                   f'p99 {c99:.0f} µs, {c_missed:.2f} % missed')
         out.append(row)
         print('  ' + ' | '.join(out[-1]), flush=True)
     if 6 in rows:
