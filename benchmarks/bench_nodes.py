@@ -199,41 +199,17 @@ def arms(rate, max_n, seconds):
     return best, seen
 
 
-BARE_LOOP = """
-import sys, time
-sys.path.insert(0, sys.argv[2])
-from picking_controller.timing import LoopStats
-period, seconds = 1e-3, float(sys.argv[1])
-stats = LoopStats(period)
-next_t = time.monotonic()
-end = next_t + seconds
-while next_t < end:
-    stats.record(time.monotonic())
-    next_t += period
-    delay = next_t - time.monotonic()
-    if delay > 0:
-        time.sleep(delay)
-s = stats.summary()
-print(s['period_error_p50_us'], s['period_error_p99_us'], s['period_error_max_us'], s['missed_percent'])
-"""
-
-
-def bare_loop(seconds):
-    """The machine's floor: a Python loop that only sleeps to 1 ms deadlines (nothing else running)."""
-    return _loop_figures(BARE_LOOP, seconds)
-
-
-CONTENDED_LOOP = """
+LOOP_SCRIPT = """
 import os, random, sys, threading, time
-sys.path.insert(0, sys.argv[2])
+sys.path[:0] = sys.argv[2:4]
 from picking_controller.timing import LoopStats
 from picking_planner.ros_common import SWITCH_INTERVAL
 sys.setswitchinterval(SWITCH_INTERVAL)
-period, seconds = 1e-3, float(sys.argv[1])
+period, seconds, contended = 1e-3, float(sys.argv[1]), sys.argv[4] == 'contended'
 stats = LoopStats(period)
 done = threading.Event()
 def loop():
-    try:
+    try:                                   # as the controller's loop thread, where allowed
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
     except (PermissionError, OSError):
         pass
@@ -247,8 +223,11 @@ def loop():
 thread = threading.Thread(target=loop)
 thread.start()
 end, x = time.monotonic() + seconds, 0
-while time.monotonic() < end:          # another thread of the process runs Python in bursts
-    burst = time.monotonic() + random.uniform(0.0, 2e-3)
+while time.monotonic() < end:
+    if not contended:
+        time.sleep(0.1)
+        continue
+    burst = time.monotonic() + random.uniform(0.0, 2e-3)     # Python in bursts of up to 2 ms
     while time.monotonic() < burst:
         for i in range(100):
             x += i * i
@@ -260,16 +239,22 @@ print(s['period_error_p50_us'], s['period_error_p99_us'], s['period_error_max_us
 """
 
 
+def bare_loop(seconds):
+    """The machine's floor: a Python thread that only sleeps to 1 ms deadlines (real-time where allowed, as the
+    controller's), nothing else running."""
+    return _loop_figures(seconds, 'bare')
+
+
 def contended_loop(seconds):
     """The GIL's share: the same loop while another thread of its process runs Python code in bursts
-    of up to 2 ms (the nodes' switch interval; the loop thread real-time where allowed)."""
-    return _loop_figures(CONTENDED_LOOP, seconds)
+    of up to 2 ms (with the nodes' switch interval)."""
+    return _loop_figures(seconds, 'contended')
 
 
-def _loop_figures(script, seconds):
+def _loop_figures(seconds, mode):
     import subprocess
-    out = subprocess.run([sys.executable, '-c', script, str(seconds), str(ROOT / 'src' / 'picking_controller'),
-                          str(ROOT / 'src' / 'picking_planner')],
+    out = subprocess.run([sys.executable, '-c', LOOP_SCRIPT, str(seconds), str(ROOT / 'src' / 'picking_controller'),
+                          str(ROOT / 'src' / 'picking_planner'), mode],
                          capture_output=True, text=True, timeout=seconds + 30)
     p50, p99, worst, missed = map(float, out.stdout.split())
     return p50, p99, worst, missed
@@ -292,7 +277,8 @@ def run(quick=False, rows=(3, 4, 6)):
         c50, c99, _, c_missed = contended_loop(5)
         (figures,) = run_stacks(1, 1000.0, seconds)
         row = loop_row(figures, f'controller loop at 1 kHz for {seconds} s (simulator and planner running)')
-        row[3] += (f'; floor: a bare Python sleep loop alone on this machine: p50 {p50:.0f} µs, p99 {p99:.0f} µs, '
+        row[3] += (f'; floor: a bare Python sleep loop alone on this machine (SCHED_FIFO where allowed, as the '
+                   f'controller): p50 {p50:.0f} µs, p99 {p99:.0f} µs, '
                    f'max {worst:.0f} µs, {missed:.2f} % missed; the same loop while another thread of its '
                    f'process runs Python (GIL switch interval {SWITCH_INTERVAL * 1e6:.0f} µs): p50 {c50:.0f} µs, '
                    f'p99 {c99:.0f} µs, {c_missed:.2f} % missed')
