@@ -152,7 +152,10 @@ class CartesianPath:
 
     def orientations(self, t):
         """Tool orientations at times ``t`` (a scipy Rotation of N), or None if not set."""
-        u = np.clip(self.profile.sample(t)[0][:, 0], 0.0, 1.0)
+        return self._orientations_at(self.profile.sample(t)[0][:, 0])
+
+    def _orientations_at(self, u):
+        u = np.clip(u, 0.0, 1.0)
         if self._slerp is not None:
             return self._slerp(u)
         if self._fixed is not None:
@@ -161,10 +164,11 @@ class CartesianPath:
 
     def poses(self, t):
         """4x4 tool poses at times ``t``, shape (N, 4, 4) (identity rotation if none set)."""
-        p = self.sample(t)[0]
+        u = self.profile.sample(t)[0][:, 0]          # the progress, sampled once for both
+        p = self.curve.at(np.clip(u, 0.0, 1.0) * self.curve.length)[0]
         out = np.zeros((p.shape[0], 4, 4))
         out[:, :3, 3] = p
         out[:, 3, 3] = 1.0
-        rots = self.orientations(t)
+        rots = self._orientations_at(u)
         out[:, :3, :3] = np.eye(3) if rots is None else rots.as_matrix()
         return out
