@@ -15,7 +15,7 @@ from harness import fmt_time, median, p99, time_calls
 from picking_planner.kinematics import ArmModel, pose_matrix
 from picking_planner.pick_cycle import PickCycle, PickSettings
 from picking_planner import trajectory
-from picking_planner.planning import PLAN_MARGIN, Planner, PlannerSettings, _full_jerk
+from picking_planner.planning import Planner, PlannerSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 APPLE = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])   # config/pick_cycle.yaml
@@ -66,12 +66,13 @@ def _accel_steps(arm, plan):
     return float(np.abs(after - before).max())
 
 
-def _rest_floor(arm, plan, label):
+def _rest_floor(planner, plan, label):
     """``(duration, floor, joints)`` of the segment ``label``: the floor is the quickest move, within the
-    planner's limits, of the joints at rest at both its ends (Ruckig, each joint on its own)."""
+    limits ``planner`` plans with, of the joints at rest at both its ends (Ruckig, each joint on its own)."""
+    arm = planner.arm
     seg = next(s for s in plan.segments if s.label == label)
     (q0, v0, _), (q1, v1, _) = (plan.trajectory.state_at(t) for t in (seg.start, seg.start + seg.duration))
-    limits = [x * PLAN_MARGIN for x in (arm.max_velocity, arm.max_acceleration, _full_jerk(arm))]
+    limits = (planner._vmax, planner._amax, planner._jmax)
     floor, joints = 0.0, []
     for j in range(arm.dof):
         if max(abs(v0[j]), abs(v1[j])) < 1e-6 and abs(q1[j] - q0[j]) > 1e-9:
@@ -103,7 +104,7 @@ def jerk_limited_cycle():
     # own fastest rest-to-rest move within the same limits.
     floors = []
     for label, name in (('P4 above the box', 'transfer'), ('P0 back home', 'return')):
-        took, floor, joints = _rest_floor(arm, optimal, label)
+        took, floor, joints = _rest_floor(jerk_limited, optimal, label)
         floors.append(f'{name} {took:.3f} s, where {"/".join(joints) or "no joint"} (at rest at both ends) '
                       f'needs ≥ {floor:.3f} s')
     lines = sum(s.duration for s in optimal.segments if s.label.startswith(('P2', 'P3', 'P5', 'P4 out')))
