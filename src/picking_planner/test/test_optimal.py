@@ -45,6 +45,27 @@ def test_the_piecewise_polynomial_is_ruckigs_trajectory(seed):
         assert qdd[0] == pytest.approx(a, abs=1e-6)
 
 
+def test_a_move_ends_exactly_at_its_target_so_the_next_one_can_start_there():
+    # Ruckig meets a target position within about 1e-8 rad; a move into a line or through a
+    # via point must end exactly where the next one starts (concatenate checks 1e-9).
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for _ in range(300):
+        q0, qf = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)
+        vf, af = rng.uniform(-1, 1, 3), rng.uniform(-3, 3, 3)
+        try:
+            move = trajectory.time_optimal(q0, qf, V, A, J, vf=vf, af=af)
+        except ValueError:          # a target state no move reaches within the limits
+            continue
+        q, qd, qdd = move.end_state()
+        worst = max(worst, np.abs(q - qf).max())
+        assert qd == pytest.approx(vf, abs=1e-12) and qdd == pytest.approx(af, abs=1e-11)
+        assert move.start_state()[0] == pytest.approx(q0, abs=1e-15)
+        onward = trajectory.quintic(qf, qf + vf, 1.0, v0=vf, a0=af)
+        assert trajectory.concatenate([move, onward]).duration == pytest.approx(move.duration + 1.0)
+    assert worst <= 1e-14
+
+
 def test_limits_hold_and_one_limit_is_used():
     traj = trajectory.time_optimal([0, 0, 0], [1.5, -0.4, 0.1], V, A, J)
     t = np.linspace(0, traj.duration, 5001)

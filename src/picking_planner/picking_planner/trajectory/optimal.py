@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import as_joint_vector
-from .piecewise import PiecewisePolynomial, merge_joint_pieces
+from .piecewise import PiecewisePolynomial, merge_joint_pieces, taylor_shift
 
 
 def _limits(value, n, name):
@@ -76,7 +76,7 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
         raise ValueError(f'no jerk-limited move: {" ".join(str(exc).split())}') from None
     if result != Result.Working and result != Result.Finished:
         raise ValueError(f'no jerk-limited move reaches the target within the limits (Ruckig: {result.name})')
-    return _to_piecewise(traj, n)
+    return _ending_at(_to_piecewise(traj, n), qf)
 
 
 def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
@@ -109,6 +109,26 @@ def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
     if traj.duration <= 0.0:
         raise ValueError('already at rest: nothing to stop')
     return _to_piecewise(traj, n)
+
+
+def _ending_at(traj, qf):
+    """``traj`` moved onto the target position ``qf`` at its end, exactly.
+
+    Ruckig meets a target position within its precision (up to about 1e-8 rad), while
+    a move that the next one continues (a blend into a line, a via point) must end
+    where that one starts (:func:`concatenate` checks 1e-9). The remainder is added
+    as a smoothstep over the whole move, ``e (10 s^3 - 15 s^4 + 6 s^5)``: it leaves
+    the start and both ends' velocities and accelerations as they are, and changes
+    velocities by at most ``1.875 e / T`` (of order 1e-8 rad/s).
+    """
+    error = qf - traj.end_state()[0]
+    if not error.any():
+        return traj
+    T = traj.duration
+    smoothstep = np.zeros((len(traj.breaks) - 1, 6, error.size))
+    smoothstep[:, 3:, :] = np.array([10.0 / T ** 3, -15.0 / T ** 4, 6.0 / T ** 5])[None, :, None] * error
+    local = taylor_shift(smoothstep, traj.breaks[:-1] - traj.breaks[0])
+    return PiecewisePolynomial(traj.breaks, traj.coeffs + local)
 
 
 def _to_piecewise(traj, n):
