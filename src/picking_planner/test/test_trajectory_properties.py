@@ -188,19 +188,24 @@ def test_non_finite_sample_times_are_a_value_error(bad):
                                    np.full(39, 0.05)),
 ])
 @pytest.mark.parametrize('n', [5, 20_001, 40_000])
-def test_long_unsorted_samplings_match_one_time_at_a_time(make, n):
-    """Many cache-sized chunks, times out of order and beyond both ends: each sample is
-    exactly what the trajectory gives at that one time."""
+@pytest.mark.parametrize('beyond', [0.5, 0.0])
+@pytest.mark.parametrize('in_order', [False, True])
+def test_long_samplings_match_one_time_at_a_time(make, n, beyond, in_order):
+    """Many cache-sized chunks, times in or out of order, beyond both ends or all within
+    (then nothing is clipped): each sample is exactly what the trajectory gives at that time."""
     traj = make()
     rng = np.random.default_rng(n)
-    t = rng.uniform(traj.start_time - 0.5, traj.end_time + 0.5, n)
-    t[:3] = traj.start_time - 1.0, traj.end_time + 1.0, traj.breaks[len(traj.breaks) // 2]
+    t = rng.uniform(traj.start_time - beyond, traj.end_time + beyond, n)
+    t[:3] = traj.start_time - 2 * beyond, traj.end_time + 2 * beyond, traj.breaks[len(traj.breaks) // 2]
+    if in_order:
+        t.sort()
     q, qd, qdd = traj.sample(t)
-    for i in rng.choice(n, 200 if n > 200 else n, replace=False).tolist() + [0, 1, 2]:
+    for i in rng.choice(n, 200 if n > 200 else n, replace=False).tolist() + [0, 1, 2, n - 1]:
         want = traj.state_at(float(t[i]))
         for got, w in zip((q[i], qd[i], qdd[i]), want):
             assert got == pytest.approx(w, rel=1e-12, abs=1e-9)
     assert np.all(qd[t > traj.end_time] == 0.0) and np.all(qdd[t < traj.start_time] == 0.0)
+
 
 def test_concatenate_composes_segments_and_refuses_a_gap():
     a = trajectory.cubic(0.0, 1.0, 1.0)
