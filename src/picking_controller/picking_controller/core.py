@@ -231,12 +231,30 @@ class ControllerCore:
             self.limited += 1
             if self._limited_version != self.version:
                 self._limited_version = self.version
-                j = int(np.argmax(np.abs(out_q - q) + np.abs(out_qd - qd) + np.abs(out_qdd - qdd)))
-                events.append(Event('WARN', f'command limited: the reference of {self.names[j]} (position '
-                                            f'{q[j]:.4g}, velocity {qd[j]:.4g}, acceleration {qdd[j]:.4g}) '
-                                            'breaks a joint limit or jumps; sent within the limits',
-                                    {'joint': self.names[j], 'limited_ticks': self.limited}))
+                events.append(self._limited_event(q, qd, qdd, out_q, out_qd, out_qdd))
         return (out_q, out_qd, out_qdd), events
+
+    def _limited_event(self, q, qd, qdd, out_q, out_qd, out_qdd):
+        """The WARN for a limited command: which joint, which limit, and the likely cause."""
+        j = int(np.argmax(np.abs(out_q - q) + np.abs(out_qd - qd) + np.abs(out_qdd - qdd)))
+        name = self.names[j]
+        if out_q[j] != q[j] and self.lower[j] <= q[j] <= self.upper[j]:
+            what = (f'its position {q[j]:.4g} jumps from the last command faster than the velocity limit '
+                    f'{self.max_velocity[j]:.4g} allows')
+        elif out_q[j] != q[j]:
+            what = f'its position {q[j]:.4g} is beyond [{self.lower[j]:.4g}, {self.upper[j]:.4g}]'
+        elif out_qd[j] != qd[j]:
+            what = f'its velocity {qd[j]:.4g} is beyond the limit {self.max_velocity[j]:.4g}'
+        else:
+            # Accelerations are checked at the points, not between them: a quintic through points
+            # whose acceleration steps between them (cubic and LSPB plans) overshoots there.
+            what = (f'its acceleration {qdd[j]:.4g} is beyond the limit {self.max_acceleration[j]:.4g} '
+                    '(between the points: the spline through them overshoots where the planned acceleration '
+                    'steps, as in cubic and LSPB moves; jerk-limited plans do not)')
+        return Event('WARN', f'command limited: the reference of {name}: {what}; sent within the limits '
+                             '(reported once per trajectory)',
+                     {'joint': name, 'position': float(q[j]), 'velocity': float(qd[j]),
+                      'acceleration': float(qdd[j]), 'limited_ticks': self.limited})
 
     def tick(self, now):
         """The watchdog; returns events (feedback lost)."""

@@ -172,7 +172,28 @@ def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
     steps = np.abs(np.diff(np.vstack([[0.0, 0.0, 0.05], sent]), axis=0))
     assert np.all(steps <= np.array([2, 2, 0.3]) * 1e-3 * 1.02)             # never faster than the limit
     assert len(reports) == 1 and reports[0].level == 'WARN' and 'command limited' in reports[0].message
+    assert "reference of a: its position 5 is beyond [-3, 3]" in reports[0].message
     assert c.limited > 0
+
+
+def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
+    """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline
+    through them overshoots the limit (the points themselves keep it)."""
+    from picking_planner import trajectory
+    c = core()
+    plan = trajectory.lspb([0.0, 0.0], [0.3, 0.0], 0.6, 9.8)        # 9.8 of the 10 rad/s^2 limit
+    t = np.arange(0.0, 0.6 + 1e-9, 0.01)
+    q, qd, qdd = plan.sample(t)
+    assert plan.blend_time[0] % 0.01 > 1e-3                         # the step falls between two points
+    assert c.load(['a', 'b'], t, q, qd, qdd, 0.0, now=0.0).level == 'OK'
+    reports = []
+    for now in np.arange(0.0, 0.7, 1e-3):
+        (_, _, sent_qdd), events = c.command(now)
+        assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
+        reports += events
+    assert len(reports) == 1, [r.message for r in reports]
+    assert 'reference of a: its acceleration' in reports[0].message
+    assert 'beyond the limit 10' in reports[0].message and float(reports[0].values['acceleration']) > 10
 
 
 def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
