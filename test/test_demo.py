@@ -27,3 +27,33 @@ def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
         assert (tmp_path / name).stat().st_size > 1000, name
     run = json.loads((tmp_path / 'run.json').read_text())
     assert run['ok'] and set(run['events']['exit_codes'].values()) == {0}
+
+
+def test_a_failed_run_reports_why_and_leaves_no_earlier_report_behind(tmp_path):
+    """An apple out of reach: the planner refuses the pick; the report says so, quotes the nodes'
+    logs and keeps what was recorded, and no report of an earlier run remains to be taken for it."""
+    import shutil
+
+    import yaml
+    from picking_planner.resources import config_dir
+
+    config = tmp_path / 'config'
+    shutil.copytree(config_dir(), config)
+    cycle = yaml.safe_load((config / 'pick_cycle.yaml').read_text())
+    cycle['picking_demo']['ros__parameters']['apple_position'] = [3.0, 0.0, 0.65]
+    (config / 'pick_cycle.yaml').write_text(yaml.safe_dump(cycle))
+    out = tmp_path / 'out'
+    out.mkdir()
+    for name in ('report.md', 'joints.png'):
+        (out / name).write_text('an earlier run')
+    done = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--out', str(out)], capture_output=True,
+                          text=True, timeout=240, env={**os.environ, 'PICKING_ARM_CONFIG': str(config)})
+    assert done.returncode == 1, done.stdout[-3000:] + done.stderr[-3000:]
+    assert 'FAILED: the planner refused the pick' in done.stdout
+    report = (out / 'report.md').read_text()
+    assert report.startswith('# Pick-and-place demo: FAILED') and 'the planner refused the pick' in report
+    assert '## picking-planner.log' in report and 'planning for picking_arm' in report
+    assert not (out / 'joints.png').exists()
+    assert (out / 'demo.mcap').stat().st_size > 1000
+    run = json.loads((out / 'run.json').read_text())
+    assert not run['ok'] and set(run['events']['exit_codes'].values()) == {0}

@@ -191,10 +191,34 @@ def run_arc_scenario(demo, spin_until, rec):
                          capture_output=True, text=True, timeout=120, env=os.environ.copy())
     for line in (first.stdout + arc.stdout).splitlines():
         log('  ' + line)
-    if first.returncode != 0 or arc.returncode != 0:
-        raise RuntimeError(f'the arc scenario failed: {first.stderr}{arc.stderr}'.strip())
+    for what, run in (('the move to P1', first), ('the arc', arc)):
+        if run.returncode != 0:
+            said = (run.stderr.strip() or run.stdout.strip() or f'exit code {run.returncode}').splitlines()[-1]
+            raise RuntimeError(f'the arc scenario failed: {what}: {said.strip()}')
     spin_until(lambda: rec.count('joint_trajectory') > n, 5.0, 'the arc trajectory')
     return {'points': [p.tolist() for p in pts], 'trajectory_index': n, 'scale': scale}
+
+
+#: What a run writes into --out (removed first, so that nothing left from an earlier run is taken for this one's).
+OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png')
+#: Lines of each node's log quoted in the report of a failed run.
+LOG_TAIL = 30
+
+
+def failure_report(rec, events, out):
+    """report.md for a run that failed: why, the end of every node's log, and what was recorded (demo.mcap)."""
+    lines = ['# Pick-and-place demo: FAILED', '', f'- {events.get("error", "a node exited with an error")}',
+             f'- exit codes: {events.get("exit_codes")}']
+    try:
+        path, n_msgs = rec.write_mcap(out / 'demo.mcap')
+        lines.append(f'- what was recorded until then: `{path.name}`, {n_msgs} messages')
+    except Exception as exc:                 # the report of a failure must not fail itself
+        lines.append(f'- the recording could not be written: {exc}')
+    for name in ('picking-sim', 'picking-controller', 'picking-planner'):
+        logfile = out / f'{name}.log'
+        tail = logfile.read_text(errors='replace').splitlines()[-LOG_TAIL:] if logfile.exists() else []
+        lines += ['', f'## {name}.log (last {len(tail)} lines)', '', '```', *tail, '```']
+    (out / 'report.md').write_text('\n'.join(lines) + '\n')
 
 
 def main(argv=None):
@@ -213,6 +237,8 @@ def main(argv=None):
     home = list(planner_params.get('home_positions', [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]))
     initial = home + [float(planner_params.get('gripper_open', 0.09))]
     log(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, discovery on loopback only; output in {args.out}')
+    for name in OUTPUTS:                     # a failed run must not leave an earlier run's report behind
+        (args.out / name).unlink(missing_ok=True)
     t0 = time.monotonic()
     rec, events = run_ros_part(args, config, args.out, demo, initial)
     ok = events['ok'] and all(code == 0 for code in events['exit_codes'].values())
@@ -220,6 +246,8 @@ def main(argv=None):
     if events['ok']:
         log('analysing the run')
         report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick)
+    else:
+        failure_report(rec, events, args.out)
     summary = {'ok': bool(ok and report_ok), 'events': {k: v for k, v in events.items() if k != 'plan'},
                'wall_time_s': time.monotonic() - t0}
     (args.out / 'run.json').write_text(json.dumps(summary, indent=2, default=str))
