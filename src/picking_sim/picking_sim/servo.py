@@ -15,6 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from picking_planner.trajectory.polynomial import hermite_coeffs
+
+#: Derivative factors of power-basis coefficients (velocity from c1..c5, acceleration from c2..c5).
+_D1 = np.arange(1.0, 6.0)
+_D2 = _D1[1:] * np.arange(1.0, 5.0)
 #: s: how far back a servo catching up after a stall takes a command stamped in its future.
 CATCH_UP = 0.25
 
@@ -107,6 +112,7 @@ class Servo:
         self.ref_q, self.ref_qd, self.ref_qdd = self.q.copy(), np.zeros(n), np.zeros(n)
         self._hold_after = max(1, int(round(self.command_timeout / self.dt)))
         self._since_command = self._hold_after          # no command yet: holding
+        self._bridge = None                             # catching up: (q, qd, qdd coefficients, steps, done)
         # Anti-windup: the integral never asks for more than the torque limit.
         self._integral_limit = self.max_torque / np.maximum(self.ki, 1e-12)
 
@@ -127,8 +133,13 @@ class Servo:
         since, so transport delay does not make the arm lag. Ages beyond the
         command timeout are not extrapolated (a stale command is only held). A
         negative age, down to -CATCH_UP s, is a command from the servo's future: a
-        servo catching up on steps it missed (its thread was stalled) takes the
-        command back to the time of the step, instead of jumping ahead to it.
+        servo catching up on steps it missed (its thread was stalled). Its
+        reference then goes from where it is (the previous command moved on) to
+        the command at the command's own time along the quintic that meets both
+        states, as a controller interpolates between trajectory points, instead of
+        jumping ahead to it. (Taking the command back in time with its velocity
+        and acceleration is off by about jerk x age^3 / 6: 0.13 rad for a 0.2 s
+        stall in a brisk move.)
         """
         q = np.asarray(q, dtype=float)
         if q.shape != self.q.shape or not np.isfinite(q.sum()):
@@ -141,12 +152,18 @@ class Servo:
         age = float(age)
         if not (np.isfinite(age) and -CATCH_UP <= age < self.command_timeout):
             age = 0.0
-        if age:
+        self._bridge = None
+        ahead = int(round(-age / self.dt))
+        if ahead >= 2:
+            span = ahead * self.dt
+            c = hermite_coeffs(self.ref_q, self.ref_qd, self.ref_qdd, q, qd, qdd, span)     # (n, 6)
+            self._bridge = (c, c[:, 1:] * _D1, c[:, 2:] * _D2, ahead, 0)
+        elif age:
             self.ref_q = q + qd * age + 0.5 * qdd * age * age
             self.ref_qd = qd + qdd * age
+            self.ref_qdd = qdd.copy()
         else:
-            self.ref_q, self.ref_qd = q.copy(), qd.copy()
-        self.ref_qdd = qdd.copy()
+            self.ref_q, self.ref_qd, self.ref_qdd = q.copy(), qd.copy(), qdd.copy()
         self._since_command = int(age / self.dt)      # counted from the command's own time
 
     def step(self, steps=1):
@@ -171,10 +188,21 @@ class Servo:
             np.minimum(np.maximum(self.qd, lo_v, out=self.qd), hi_v, out=self.qd)
             self.q += self.qd * dt
             self._since_command += 1
-            if self._since_command < self._hold_after:
+            if self._bridge is not None:
+                self._bridge_step()
+            elif self._since_command < self._hold_after:
                 self.ref_q = self.ref_q + self.ref_qd * dt + 0.5 * self.ref_qdd * dt * dt
                 self.ref_qd = self.ref_qd + self.ref_qdd * dt
             elif self._since_command == self._hold_after:
                 self.ref_qd = np.zeros_like(self.ref_qd)
                 self.ref_qdd = np.zeros_like(self.ref_qdd)
         return self.q, self.qd
+
+    def _bridge_step(self):
+        """The reference one step further along the catch-up quintic (at its end: the command)."""
+        c, c1, c2, steps, done = self._bridge
+        done += 1
+        tau = done * self.dt
+        p = tau ** np.arange(6)
+        self.ref_q, self.ref_qd, self.ref_qdd = c @ p, c1 @ p[:5], c2 @ p[:4]
+        self._bridge = (c, c1, c2, steps, done) if done < steps else None

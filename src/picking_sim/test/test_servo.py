@@ -53,25 +53,46 @@ def test_stale_or_bad_ages_are_not_extrapolated():
         assert servo.ref_q[0] == 1.0
 
 
-def test_a_servo_catching_up_after_a_stall_follows_the_commands_not_ahead_of_them():
-    # The servo's thread stalls for 80 ms at 0.3 s; it wakes with its clock still at 0.3 s and
-    # the newest command sampled at 0.38 s (in its future), and runs the missed steps at once.
-    traj = trajectory.quintic(np.zeros(1), [1.0], 1.0)
+@pytest.mark.parametrize('move, stall', [
+    ((1.0, 1.0), 0.08),
+    ((1.5, 0.6), 0.08),
+    ((1.5, 0.6), 0.2),          # a brisk move: taken back in time the command was 7 degrees off
+])
+def test_a_servo_catching_up_after_a_stall_follows_the_commands_not_ahead_of_them(move, stall):
+    # The servo's thread stalls at 0.2 s; it wakes with its clock still at 0.2 s and the newest
+    # command sampled `stall` s later (in its future), and runs the missed steps at once.
+    distance, duration = move
+    traj = trajectory.quintic(np.zeros(1), [distance], duration)
     servo = Servo(np.zeros(1), params=ServoParams(max_velocity=5.0), command_timeout=0.05)
-    worst, steps = 0.0, int(round(1.2 / servo.dt))
+    worst, steps = 0.0, int(round((duration + 0.2) / servo.dt))
+    missed = int(round(stall / servo.dt))
     k = 0
     while k < steps:
         t = k * servo.dt
-        stall = 0.3 <= t < 0.3 + 1e-9 + servo.dt / 2
-        sampled = t + 0.08 if stall else t
+        stalled = abs(t - 0.2) < servo.dt / 2
+        sampled = t + stall if stalled else t
         q, qd, qdd = (x[0] for x in traj.sample(np.array([sampled])))
         servo.command(q, qd, qdd, age=t - sampled)
-        for _ in range(80 if stall else 1):
+        for _ in range(missed if stalled else 1):
             servo.step()
             k += 1
             worst = max(worst, abs(servo.q[0] - traj.sample(np.array([k * servo.dt]))[0][0, 0]))
-            assert servo.commanded                    # 80 ms of catching up is not "no commands"
+            assert servo.commanded                    # catching up is not "no commands"
     assert np.degrees(worst) < 0.05
+
+
+def test_the_catch_up_ends_on_the_command_then_moves_on_from_it():
+    servo = Servo(np.zeros(2), command_timeout=0.05)
+    servo.command([0.1, -0.2], [1.0, 0.5], [2.0, 0.0], age=-0.03)     # 30 steps in the servo's future
+    servo.step(29)
+    assert servo.ref_q != pytest.approx([0.1, -0.2])
+    servo.step()
+    assert servo.ref_q == pytest.approx([0.1, -0.2], abs=1e-12) and servo.ref_qd == pytest.approx([1.0, 0.5])
+    assert servo.ref_qdd == pytest.approx([2.0, 0.0], abs=1e-9)
+    servo.step(10)                                                     # then on with its velocity
+    assert servo.ref_q == pytest.approx([0.1 + 0.01 + 0.5 * 2.0 * 1e-4, -0.2 + 0.005], abs=1e-9)
+    servo.step(60)
+    assert not servo.commanded and servo.ref_qd == pytest.approx([0.0, 0.0])
 
 
 def test_holds_its_position_without_commands():
