@@ -28,6 +28,9 @@ from picking_planner.ros_common import (LatestMessage, joint_state, joint_state_
 
 from .servo import Servo, ServoParams
 
+#: s: a servo loop woken this much late says so (at most once a second).
+STALL_REPORT = 0.02
+
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -122,8 +125,13 @@ class SimNode(Node):
         t0 = self.get_clock().now().nanoseconds * 1e-9
         done = 0
         commanded = False
+        reported = -np.inf
         while not self._stop.is_set():
             due = int((time.monotonic() - start) / dt) + 1 - done
+            if due * dt > STALL_REPORT and time.monotonic() - reported >= 1.0:
+                reported = time.monotonic()
+                self.get_logger().warn(f'servo loop stalled for {due * dt:.3f} s: running the {due} missed steps '
+                                       'at once (the reference follows the commands through them)')
             if due > 0:
                 with self.lock:
                     self._apply_newest_command(t0 + done * dt)
