@@ -50,17 +50,19 @@ def run_node(make_node, args=None):
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = executor = None
     try:
+        # Everything loaded so far lives as long as the process: keep it out of the
+        # garbage collector's full passes, which would otherwise stall a loop thread
+        # for milliseconds. Collected before the node starts its loop thread: the
+        # collection holds the GIL for about 0.1 s.
+        gc.collect()
+        gc.freeze()
         try:
             node = make_node()
         except (ValueError, FileNotFoundError) as exc:
             # A bad parameter or file: say what, exit non-zero, no traceback.
             print(f'{sys.argv[0]}: {exc}', file=sys.stderr)
             return 2
-        # Everything loaded so far lives as long as the process: keep it out of the
-        # garbage collector's full passes, which would otherwise stall a loop thread
-        # for milliseconds.
-        gc.collect()
-        gc.freeze()
+        gc.freeze()                              # the node's own objects too (no collection: cheap)
         # One executor thread: rclpy's multi-threaded executor costs far more per
         # callback, and each node's real-time loop runs in a thread of its own.
         executor = SingleThreadedExecutor()

@@ -126,6 +126,7 @@ class SimNode(Node):
         done = 0
         commanded = False
         reported = -np.inf
+        waiting = None               # since when a catch-up waits for a newer command (monotonic s)
         while not self._stop.is_set():
             due = int((time.monotonic() - start) / dt) + 1 - done
             if due * dt > STALL_REPORT and time.monotonic() - reported >= 1.0:
@@ -135,6 +136,17 @@ class SimNode(Node):
             if due > 0:
                 with self.lock:
                     self._apply_newest_command(t0 + done * dt)
+                    left = self.servo.steps_commanded
+                    if left is None or left > due:
+                        waiting = None
+                    else:
+                        # Catching up beyond where the newest command goes. A process stalled as a whole
+                        # (its DDS threads too) receives the commands sent meanwhile a moment after it
+                        # wakes: wait for them, up to the command timeout, rather than hold the arm
+                        # through steps they cover.
+                        waiting = time.monotonic() if waiting is None else waiting
+                        if time.monotonic() - waiting < self.servo.command_timeout:
+                            due = left - 1
                     for _ in range(due):
                         self.servo.step()
                         done += 1
@@ -145,7 +157,7 @@ class SimNode(Node):
                         self._say_commanded(commanded)
             next_deadline = start + (done + 1) * dt
             # Always sleep a little: a real-time thread that never sleeps starves the rest.
-            time.sleep(max(next_deadline - time.monotonic(), 5e-5))
+            time.sleep(dt if waiting is not None else max(next_deadline - time.monotonic(), 5e-5))
 
     def _say_commanded(self, commanded):
         if commanded:
