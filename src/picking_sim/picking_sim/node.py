@@ -30,6 +30,8 @@ from .servo import Servo, ServoParams
 
 #: s: a servo loop woken this much late says so (at most once a second).
 STALL_REPORT = 0.02
+#: s: a loop woken that late first lets the process's other threads run this long (see _loop).
+CATCH_UP_YIELD = 0.002
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -125,28 +127,26 @@ class SimNode(Node):
         t0 = self.get_clock().now().nanoseconds * 1e-9
         done = 0
         commanded = False
-        reported = -np.inf
-        waiting = None               # since when a catch-up waits for a newer command (monotonic s)
+        reported, stalls, worst = -np.inf, 0, 0.0      # stalls are reported at most once a second
         while not self._stop.is_set():
             due = int((time.monotonic() - start) / dt) + 1 - done
-            if due * dt > STALL_REPORT and time.monotonic() - reported >= 1.0:
+            if due * dt > STALL_REPORT:
+                stalls, worst = stalls + 1, max(worst, due * dt)
+                # Woken far behind: the whole process may have been stopped, its DDS threads too.
+                # Let them take in the commands sent meanwhile, then catch up along the newest.
+                time.sleep(CATCH_UP_YIELD)
+                due = int((time.monotonic() - start) / dt) + 1 - done
+            if stalls and time.monotonic() - reported >= 1.0:
                 reported = time.monotonic()
-                self.get_logger().warn(f'servo loop stalled for {due * dt:.3f} s: running the {due} missed steps '
-                                       'at once (the reference follows the commands through them)')
+                self.get_logger().warn(
+                    f'servo loop stalled for {worst:.3f} s'
+                    + (f' (the longest of {stalls} stalls over {STALL_REPORT * 1e3:g} ms since the last report)'
+                       if stalls > 1 else '')
+                    + ': ran the missed steps at once, the reference following the commands through them')
+                stalls, worst = 0, 0.0
             if due > 0:
                 with self.lock:
                     self._apply_newest_command(t0 + done * dt)
-                    left = self.servo.steps_commanded
-                    if left is None or left > due:
-                        waiting = None
-                    else:
-                        # Catching up beyond where the newest command goes. A process stalled as a whole
-                        # (its DDS threads too) receives the commands sent meanwhile a moment after it
-                        # wakes: wait for them, up to the command timeout, rather than hold the arm
-                        # through steps they cover.
-                        waiting = time.monotonic() if waiting is None else waiting
-                        if time.monotonic() - waiting < self.servo.command_timeout:
-                            due = left - 1
                     for _ in range(due):
                         self.servo.step()
                         done += 1
@@ -157,7 +157,7 @@ class SimNode(Node):
                         self._say_commanded(commanded)
             next_deadline = start + (done + 1) * dt
             # Always sleep a little: a real-time thread that never sleeps starves the rest.
-            time.sleep(dt if waiting is not None else max(next_deadline - time.monotonic(), 5e-5))
+            time.sleep(max(next_deadline - time.monotonic(), 5e-5))
 
     def _say_commanded(self, commanded):
         if commanded:

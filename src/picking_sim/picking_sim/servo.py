@@ -125,13 +125,6 @@ class Servo:
         """True while commands come (the reference moves on); False once it holds for lack of them."""
         return self._since_command < self._hold_after
 
-    @property
-    def steps_commanded(self):
-        """Steps the reference still follows the newest command before it holds for lack of a
-        newer one (None while it already holds)."""
-        left = self._hold_after - self._since_command
-        return left if left > 0 else None
-
     def command(self, q, qd=None, qdd=None, age=0.0):
         """Set the reference (position, and optionally velocity and acceleration feedforward).
 
