@@ -100,6 +100,7 @@ class ControllerCore:
         self.stall_limit = float(stall_limit)
         self.delayed = 0.0               # s the trajectories were delayed by stalled ticks, in all
         self._last_tick = None
+        self._stalled_until = -np.inf    # when the last stall ended (its delay was applied)
         self._stall_reported = -np.inf
 
     # -- feedback -------------------------------------------------------------
@@ -129,6 +130,11 @@ class ControllerCore:
         return events
 
     def _check_tracking(self, t_meas, now):
+        if t_meas < self._stalled_until:
+            # Measured while this loop stood still (a process stalled as a whole catches up with states
+            # stamped in the past): the reference of that time was rewritten by the stall's delay, so
+            # there is nothing to compare with. The next measurement is checked.
+            return []
         ref_q = self.traj.sample(t_meas - self.t0)[0][0]
         err = self.measured_q - ref_q
         np.maximum(self.max_error, np.abs(err), out=self.max_error)
@@ -177,6 +183,7 @@ class ControllerCore:
         if not excess > 0:
             return []
         self.t0 += excess
+        self._stalled_until = now
         if self.next is not None:
             self.next = replace(self.next, t_splice=self.next.t_splice + excess)
         self.version += 1                # a trajectory prepared before the stall is prepared again

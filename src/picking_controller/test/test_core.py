@@ -244,6 +244,20 @@ def test_a_tracking_check_after_a_stall_compares_with_the_delayed_reference():
     assert c.mode == 'moving'
 
 
+def test_a_state_measured_during_a_stall_is_not_checked_against_the_rewritten_reference():
+    """A whole machine stalled: the simulator catches up and sends states stamped inside the
+    stall, after this loop has delayed its trajectory; those are not compared (a state stamped
+    after the stall is)."""
+    c = core(path=0.05)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    c.advance(0.5)
+    c.advance(1.0)                                            # stalled: the trajectory goes on 0.45 s later
+    inside = c.traj.state_at(0.9)[0]                          # where a drive following on would be at 0.9 s
+    assert c.on_state(inside, [0, 0, 0], 0.9, now=1.001) == []
+    events = c.on_state(inside, [0, 0, 0], 1.001, now=1.002)
+    assert events and events[0].level == 'ERROR' and 'path tolerance' in events[0].message
+
+
 @pytest.mark.parametrize('limit', [0.0, -1.0, np.nan])
 def test_stall_limit_must_be_positive(limit):
     with pytest.raises(ValueError, match='stall_limit'):
