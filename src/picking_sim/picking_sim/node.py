@@ -28,7 +28,7 @@ from picking_planner.ros_common import (LatestMessage, joint_state, joint_state_
 
 from .servo import Servo, ServoParams
 
-#: s: a servo loop woken this much late says so (at most once a second).
+#: s: a servo loop woken this much late says so (the longest such stall, at most once a second).
 STALL_REPORT = 0.02
 #: s: a loop woken that late first lets the process's other threads run this long (see _loop).
 CATCH_UP_YIELD = 0.002

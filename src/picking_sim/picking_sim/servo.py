@@ -20,6 +20,7 @@ from picking_planner.trajectory.polynomial import hermite_coeffs
 #: Derivative factors of power-basis coefficients (velocity from c1..c5, acceleration from c2..c5).
 _D1 = np.arange(1.0, 6.0)
 _D2 = _D1[1:] * np.arange(1.0, 5.0)
+
 #: s: how far back a servo catching up after a stall takes a command stamped in its future.
 CATCH_UP = 0.25
 
