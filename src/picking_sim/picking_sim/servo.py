@@ -15,11 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from picking_planner.trajectory.polynomial import hermite_coeffs
-
-#: Derivative factors of power-basis coefficients (velocity from c1..c5, acceleration from c2..c5).
-_D1 = np.arange(1.0, 6.0)
-_D2 = _D1[1:] * np.arange(1.0, 5.0)
+from picking_planner.trajectory import quintic
 
 #: s: how far back a servo catching up after a stall takes a command stamped in its future.
 CATCH_UP = 0.25
@@ -113,7 +109,7 @@ class Servo:
         self.ref_q, self.ref_qd, self.ref_qdd = self.q.copy(), np.zeros(n), np.zeros(n)
         self._hold_after = max(1, int(round(self.command_timeout / self.dt)))
         self._since_command = self._hold_after          # no command yet: holding
-        self._bridge = None                             # catching up: (q, qd, qdd coefficients, steps, done)
+        self._bridge = None                             # catching up: (the quintic to the command, steps, done)
         # Anti-windup: the integral never asks for more than the torque limit.
         self._integral_limit = self.max_torque / np.maximum(self.ki, 1e-12)
 
@@ -156,9 +152,8 @@ class Servo:
         self._bridge = None
         ahead = int(round(-age / self.dt))
         if ahead >= 2:
-            span = ahead * self.dt
-            c = hermite_coeffs(self.ref_q, self.ref_qd, self.ref_qdd, q, qd, qdd, span)     # (n, 6)
-            self._bridge = (c, c[:, 1:] * _D1, c[:, 2:] * _D2, ahead, 0)
+            self._bridge = (quintic(self.ref_q, q, ahead * self.dt, v0=self.ref_qd, vf=qd, a0=self.ref_qdd, af=qdd),
+                            ahead, 0)
         elif age:
             self.ref_q = q + qd * age + 0.5 * qdd * age * age
             self.ref_qd = qd + qdd * age
@@ -201,9 +196,7 @@ class Servo:
 
     def _bridge_step(self):
         """The reference one step further along the catch-up quintic (at its end: the command)."""
-        c, c1, c2, steps, done = self._bridge
+        bridge, steps, done = self._bridge
         done += 1
-        tau = done * self.dt
-        p = tau ** np.arange(6)
-        self.ref_q, self.ref_qd, self.ref_qdd = c @ p, c1 @ p[:5], c2 @ p[:4]
-        self._bridge = (c, c1, c2, steps, done) if done < steps else None
+        self.ref_q, self.ref_qd, self.ref_qdd = bridge.state_at(min(done * self.dt, bridge.duration))
+        self._bridge = (bridge, steps, done) if done < steps else None
