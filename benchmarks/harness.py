@@ -55,6 +55,31 @@ def machine():
             f'Python {platform.python_version()}, numpy {np.__version__}')
 
 
+def cpu_times():
+    """The machine's CPU time so far (all cores, in clock ticks) from ``/proc/stat``: user, nice,
+    system, idle, iowait, irq, softirq, steal; None where there is no such file (not Linux)."""
+    try:
+        with open('/proc/stat') as f:
+            fields = f.readline().split()
+    except OSError:
+        return None
+    return np.array(fields[1:9], dtype=np.int64) if fields and fields[0] == 'cpu' else None
+
+
+def steal_share(before, after):
+    """Of the CPU time the machine wanted between two :func:`cpu_times`, the share the hypervisor
+    gave to other guests (steal / (busy + steal)), or None without both readings.
+
+    On a virtual machine, a real-time loop that wakes while its virtual CPU is not running wakes
+    late, whatever the code: this is the figure that says how often that could happen."""
+    if before is None or after is None:
+        return None
+    d = after - before
+    busy = d[0] + d[1] + d[2] + d[5] + d[6]
+    wanted = busy + d[7]
+    return float(d[7] / wanted) if wanted > 0 else 0.0
+
+
 def table(rows, header):
     """A Markdown table from rows of strings."""
     lines = ['| ' + ' | '.join(header) + ' |', '| ' + ' | '.join('---' for _ in header) + ' |']

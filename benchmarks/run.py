@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_ik  # noqa: E402
 import bench_plan  # noqa: E402
 import bench_trajectory  # noqa: E402
-from harness import machine, table  # noqa: E402
+from harness import cpu_times, machine, steal_share, table  # noqa: E402
 
 HEADER = ['#', 'figure', 'ours', 'detail (peer side by side, or the figures behind it)', 'goal', 'verdict']
 
@@ -41,25 +41,37 @@ def main(argv=None):
     rows_wanted = {int(x) for x in args.only.split(',')}
     repeats = 3 if args.quick else 15
     print(f'machine: {machine()}', flush=True)
-    started = time.monotonic()
-    rows = []
+    started, first_times = time.monotonic(), cpu_times()
+    rows, steal = [], {}
+
+    def measure(label, run):
+        """``run()``'s rows, noting the CPU steal while it ran (see harness.steal_share)."""
+        before = cpu_times()
+        out = run()
+        steal[label] = steal_share(before, cpu_times())
+        if steal[label] is not None:
+            print(f'  CPU steal during row{"s" if "/" in label else ""} {label}: {100 * steal[label]:.1f} % of the '
+                  'time the machine wanted', flush=True)
+        return out
+
     if 1 in rows_wanted:
         print('row 1: trajectory sampling and IK against roboticstoolbox-python', flush=True)
-        rows += bench_trajectory.run(repeats)
-        rows += bench_ik.run(repeats)
+        rows += measure('1', lambda: bench_trajectory.run(repeats) + bench_ik.run(repeats))
     if 2 in rows_wanted:
         print('row 2: planning the Table 1 cycle in process', flush=True)
-        rows += bench_plan.planning_time(repeats)
+        rows += measure('2', lambda: bench_plan.planning_time(repeats))
     if rows_wanted & {3, 4, 6}:
         import bench_nodes
-        rows += bench_nodes.run(args.quick, rows_wanted)
+        rows += measure('/'.join(str(r) for r in sorted(rows_wanted & {3, 4, 6})),
+                        lambda: bench_nodes.run(args.quick, rows_wanted))
     if 5 in rows_wanted:
         print('row 5: servo tracking through the pick cycle (the demo on the simulator)', flush=True)
-        rows += bench_plan.tracking()
+        rows += measure('5', bench_plan.tracking)
     if 7 in rows_wanted:
         print('row 7: the cycle within velocity, acceleration and jerk limits', flush=True)
-        rows += bench_plan.jerk_limited_cycle()
+        rows += measure('7', bench_plan.jerk_limited_cycle)
     rows.sort(key=lambda r: int(r[0]))
+    total_steal = steal_share(first_times, cpu_times())
     text = table(rows, HEADER)
     print()
     print(text)
@@ -68,11 +80,22 @@ def main(argv=None):
     args.out.write_text(
         '# Benchmarks\n\n'
         f'Measured by `make bench` on {datetime.date.today()} in {minutes:.0f} min: {machine()}.\n'
+        + _steal_line(total_steal, steal) +
         f'In-process figures are medians (and p99) over {repeats} interleaved repeats; ratios are peer median / our '
         'median, measured side by side in the same run. No test asserts a time: these figures are measured here '
         'only.\n\n' + text + '\n\n' + NOTES)
     print(f'\nwrote {args.out}')
     return 0
+
+
+def _steal_line(total, by_rows):
+    """The docs' sentence on CPU steal (empty where it cannot be read)."""
+    if total is None:
+        return ''
+    parts = ', '.join(f'row{"s" if "/" in label else ""} {label}: {100 * share:.1f} %'
+                      for label, share in by_rows.items() if share is not None)
+    return (f'CPU steal (time this virtual machine wanted its cores and the hypervisor ran other guests, from '
+            f'/proc/stat): {100 * total:.1f} % of the time it wanted over the run ({parts}).\n')
 
 
 NOTES = (Path(__file__).resolve().parent / 'NOTES.md').read_text() if (
