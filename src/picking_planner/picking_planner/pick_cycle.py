@@ -222,8 +222,12 @@ class PickCycle:
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
         add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
-        # P3: the lift flows into the transfer (stopping at P4 for this choice) ...
-        _, (lift, path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest), transfer)
+        # P3: the lift flows into the transfer (stopping at P4 for this choice; without blends there is no
+        # choice to make, and the transfer is planned once, below) ...
+        if s.blend:
+            _, (lift, path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest), transfer)
+        else:
+            lift, path = self._lift(q_apple, poses, 0.0)
         add('P3 lift and detach', s.lift_method, lift, path)
         # ... and the transfer into the line into the box.
         moved, (traj, path) = self._quickest(
