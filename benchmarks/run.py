@@ -50,8 +50,8 @@ def main(argv=None):
         out = run()
         steal[label] = steal_share(before, cpu_times())
         if steal[label] is not None:
-            print(f'  CPU steal during row{"s" if "/" in label else ""} {label}: {100 * steal[label]:.1f} % of the '
-                  'time the machine wanted', flush=True)
+            print(f'  CPU steal during {_rows(label)}: {100 * steal[label]:.1f} % of the time the machine wanted',
+                  flush=True)
         return out
 
     if 1 in rows_wanted:
@@ -88,12 +88,16 @@ def main(argv=None):
     return 0
 
 
+def _rows(label):
+    """'row 2' or 'rows 3/4/6'."""
+    return f'row{"s" if "/" in label else ""} {label}'
+
+
 def _steal_line(total, by_rows):
     """The docs' sentence on CPU steal (empty where it cannot be read)."""
     if total is None:
         return ''
-    parts = ', '.join(f'row{"s" if "/" in label else ""} {label}: {100 * share:.1f} %'
-                      for label, share in by_rows.items() if share is not None)
+    parts = ', '.join(f'{_rows(label)}: {100 * share:.1f} %' for label, share in by_rows.items() if share is not None)
     return (f'CPU steal (time this virtual machine wanted its cores and the hypervisor ran other guests, from '
             f'/proc/stat): {100 * total:.1f} % of the time it wanted over the run ({parts}).\n')
 
