@@ -15,6 +15,7 @@ import numpy as np
 
 from ._checks import as_joint_vector
 from .piecewise import PiecewisePolynomial, merge_joint_pieces, taylor_shift
+from .polynomial import hermite_coeffs
 
 
 def _limits(value, n, name):
@@ -124,10 +125,10 @@ def _ending_at(traj, qf):
     error = qf - traj.end_state()[0]
     if not error.any():
         return traj
-    T = traj.duration
-    smoothstep = np.zeros((len(traj.breaks) - 1, 6, error.size))
-    smoothstep[:, 3:, :] = np.array([10.0 / T ** 3, -15.0 / T ** 4, 6.0 / T ** 5])[None, :, None] * error
-    local = taylor_shift(smoothstep, traj.breaks[:-1] - traj.breaks[0])
+    # The quintic from 0 to the remainder, at rest at both ends, re-expanded about every break.
+    smoothstep = hermite_coeffs(0.0, 0.0, 0.0, error, 0.0, 0.0, traj.duration).T     # (6, n)
+    pieces = np.broadcast_to(smoothstep, (len(traj.breaks) - 1,) + smoothstep.shape)
+    local = taylor_shift(pieces, traj.breaks[:-1] - traj.breaks[0])
     return PiecewisePolynomial(traj.breaks, traj.coeffs + local)
 
 
