@@ -183,6 +183,8 @@ def test_non_finite_sample_times_are_a_value_error(bad):
 
 @pytest.mark.parametrize('make', [
     lambda: trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0).shifted(0.3),      # one segment
+    lambda: trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0, [0.5, 0.0, -1.0]),  # no shared profile
+    lambda: trajectory.hold([0.3, -1.0, 2.0], 1.5),                                        # no motion
     lambda: trajectory.lspb([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0, 6.0),               # a few segments
     lambda: trajectory.quintic_via(np.sin(np.arange(40.0))[:, None] * [1.0, 2.0, -1.0],  # many: gathered
                                    np.full(39, 0.05)),
@@ -205,6 +207,24 @@ def test_long_samplings_match_one_time_at_a_time(make, n, beyond, in_order):
         for got, w in zip((q[i], qd[i], qdd[i]), want):
             assert got == pytest.approx(w, rel=1e-12, abs=1e-9)
     assert np.all(qd[t > traj.end_time] == 0.0) and np.all(qdd[t < traj.start_time] == 0.0)
+
+
+def test_a_profile_the_joints_share_is_found_only_where_there_is_one():
+    """Long samplings of a synchronised move evaluate one profile and scale it per joint;
+    a move whose joints do not all follow one profile is never taken for one."""
+    from picking_planner.trajectory.piecewise import _shared_profile
+    q0, qf = [0.0, 1.0, -2.0], [1.0, -2.0, 0.5]
+    for traj in (trajectory.quintic(q0, qf, 2.0), trajectory.cubic(q0, qf, 2.0), trajectory.hold(q0, 1.0),
+                 trajectory.quintic([0.5], [2.0], 1.0)):
+        U, w, c0 = _shared_profile(traj.coeffs[0])
+        tau = np.array([0.0, 0.3, 0.7])
+        powers = tau[None, :] ** np.arange(6)[:, None]
+        q, qd, qdd = traj.sample(tau)
+        s = U @ powers
+        for i, want in enumerate((q - c0, qd, qdd)):
+            assert np.outer(s[i], w) == pytest.approx(want, rel=1e-12, abs=1e-12)
+    assert _shared_profile(trajectory.quintic(q0, qf, 2.0, [0.5, 0.0, -1.0]).coeffs[0]) is None
+    assert _shared_profile(trajectory.quintic(q0, qf, 2.0, af=[0.0, 0.0, 1e-6]).coeffs[0]) is None
 
 
 def test_concatenate_composes_segments_and_refuses_a_gap():

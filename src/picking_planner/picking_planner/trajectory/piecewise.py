@@ -36,6 +36,9 @@ _GATHER_SAMPLES = 20_000
 # Samples evaluated at once by one segment's matrix product: the power basis of a chunk
 # (6 x 8192 doubles, 384 KiB) stays in cache.
 _CHUNK = 8192
+# From this many samples of one segment on, sample() looks for a profile all its joints share
+# (a few microseconds, paid back many times over when it finds one).
+_SHARED_MIN = 4096
 
 
 class PiecewisePolynomial:
@@ -138,7 +141,9 @@ class PiecewisePolynomial:
         Vectorised per segment, not per sample: the samples of each segment
         are matrix products of their power basis with the segment's stacked
         (q, qd, qdd) coefficients, a cache-sized chunk at a time. Sorted times
-        are the fast path.
+        are the fast path. Where thousands of samples fall in a segment whose
+        joints share one profile (a synchronised point-to-point move), that
+        profile is evaluated once and scaled per joint.
         """
         t, t_min, t_max = time_array_and_extremes(t)
         breaks = self._breaks
@@ -147,7 +152,7 @@ class PiecewisePolynomial:
         m = len(breaks) - 1
         outside_any = t_min < breaks[0] or t_max > breaks[-1]
         if m == 1:
-            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._rows[0], rows, outside_any)
+            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._rows[0], rows, outside_any, self._coeffs[0])
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
             # batched product instead of a Python loop over the segments.
@@ -169,7 +174,8 @@ class PiecewisePolynomial:
             edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
             for k in np.flatnonzero(edges[1:] > edges[:-1]):
                 lo, hi = edges[k], edges[k + 1]
-                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows[:, lo:hi], outside_any)
+                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows[:, lo:hi], outside_any,
+                            self._coeffs[k])
             if order is not None:
                 unsorted = np.empty_like(rows)
                 unsorted[:, order] = rows
@@ -270,7 +276,7 @@ def _stack_derivatives(coeffs):
     return out
 
 
-def _eval_block(t, lo, hi, origin, rows, out, clip=True):
+def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None):
     """Write q, qd, qdd at times ``t`` (clipped to ``[lo, hi]``, local to ``origin``) into
     ``out`` (3n, len(t)), from one segment's ``rows`` (3n, 6) of stacked coefficients.
     ``clip=False`` when no time lies outside ``[lo, hi]``: the clip (a quarter of the
@@ -278,8 +284,12 @@ def _eval_block(t, lo, hi, origin, rows, out, clip=True):
 
     A chunk at a time: each chunk's power basis stays in cache and no full-length
     temporary is written, so a long sampling costs little more than writing its output.
+    Given the segment's ``coeffs`` (6, n) and many times, a profile its joints share (see
+    :func:`_shared_profile`) is evaluated once and scaled per joint: a third of the products.
     """
     size = t.size
+    shared = _shared_profile(coeffs) if coeffs is not None and size >= _SHARED_MIN else None
+    basis, dst = (rows, out) if shared is None else (shared[0], np.empty((3, size)))
     powers = np.empty((_N_COEFFS, min(size, _CHUNK)))
     powers[0] = 1.0
     for a in range(0, size, _CHUNK):
@@ -293,7 +303,33 @@ def _eval_block(t, lo, hi, origin, rows, out, clip=True):
             np.subtract(t[a:b], origin, out=tau)
         for i in range(2, _N_COEFFS):
             np.multiply(p[i - 1], tau, out=p[i])
-        np.matmul(rows, p, out=out[:, a:b])
+        np.matmul(basis, p, out=dst[:, a:b])
+    if shared is not None:
+        _, w, c0 = shared
+        n = w.size
+        for i in range(3):
+            np.multiply(w[:, None], dst[i], out=out[i * n:(i + 1) * n])
+        out[:n] += c0[:, None]
+
+
+def _shared_profile(coeffs):
+    """``(U, w, c0)`` when every joint of a segment moves along one polynomial ``s``, scaled:
+    ``q_j(tau) = c0_j + w_j s(tau)`` (a synchronised point-to-point move, such as a cubic or
+    quintic from rest to rest); None otherwise. ``U`` (3, 6) maps the power basis to s and its
+    first two derivatives.
+    """
+    rest = coeffs[1:]                                      # (5, n): the part that moves
+    size = np.abs(rest)
+    v = rest[:, int(size.max(axis=0).argmax())]            # the joint that moves most: s itself
+    vv = float(v @ v)
+    w = (v @ rest) / vv if vv > 0.0 else np.zeros(rest.shape[1])
+    if vv > 0.0 and np.abs(rest - np.outer(v, w)).max() > 1e-12 * size.max():
+        return None
+    U = np.zeros((3, _N_COEFFS))
+    U[0, 1:] = v
+    U[1, :-1] = v * _D1
+    U[2, :-2] = v[1:] * _D2
+    return U, w, coeffs[0]
 
 
 def taylor_shift(coeffs, dt):
