@@ -225,6 +225,10 @@ def test_a_profile_the_joints_share_is_found_only_where_there_is_one():
             assert np.outer(s[i], w) == pytest.approx(want, rel=1e-12, abs=1e-12)
     assert _shared_profile(trajectory.quintic(q0, qf, 2.0, [0.5, 0.0, -1.0]).coeffs[0]) is None
     assert _shared_profile(trajectory.quintic(q0, qf, 2.0, af=[0.0, 0.0, 1e-6]).coeffs[0]) is None
+    # A short move: one joint's velocity term, tiny beside the tau^5 coefficients, is its own.
+    coeffs = trajectory.quintic(q0, qf, 0.01).coeffs.copy()
+    coeffs[0, 1, 0] += 1e-6
+    assert _shared_profile(coeffs[0]) is None
 
 
 def test_concatenate_composes_segments_and_refuses_a_gap():

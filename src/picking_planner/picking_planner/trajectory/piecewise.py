@@ -323,7 +323,8 @@ def _shared_profile(coeffs):
     v = rest[:, int(size.max(axis=0).argmax())]            # the joint that moves most: s itself
     vv = float(v @ v)
     w = (v @ rest) / vv if vv > 0.0 else np.zeros(rest.shape[1])
-    if vv > 0.0 and np.abs(rest - np.outer(v, w)).max() > 1e-12 * size.max():
+    # Each power on its own scale (a short move's tau^5 coefficient dwarfs its velocity's).
+    if vv > 0.0 and (np.abs(rest - np.outer(v, w)) > 1e-12 * size.max(axis=1, keepdims=True)).any():
         return None
     U = np.zeros((3, _N_COEFFS))
     U[0, 1:] = v
