@@ -18,7 +18,9 @@ import numpy as np
 from picking_planner.trajectory import quintic
 
 #: s: how far back a servo catching up after a stall takes a command stamped in its future.
-CATCH_UP = 0.25
+#: The middleware has been measured blocking a publishing thread (the servo's, with the GIL)
+#: for 0.33 s: such a stall is bridged too, not jumped.
+CATCH_UP = 0.5
 
 
 @dataclass

@@ -57,6 +57,7 @@ def test_stale_or_bad_ages_are_not_extrapolated():
     ((1.0, 1.0), 0.08),
     ((1.5, 0.6), 0.08),
     ((1.5, 0.6), 0.2),          # a brisk move: taken back in time the command was 7 degrees off
+    ((1.5, 0.8), 0.35),         # as long as the middleware was seen to block a publish
 ])
 def test_a_servo_catching_up_after_a_stall_follows_the_commands_not_ahead_of_them(move, stall):
     # The servo's thread stalls at 0.2 s; it wakes with its clock still at 0.2 s and the newest
