@@ -326,11 +326,8 @@ def _shared_profile(coeffs):
     # Each power on its own scale (a short move's tau^5 coefficient dwarfs its velocity's).
     if vv > 0.0 and (np.abs(rest - np.outer(v, w)) > 1e-12 * size.max(axis=1, keepdims=True)).any():
         return None
-    U = np.zeros((3, _N_COEFFS))
-    U[0, 1:] = v
-    U[1, :-1] = v * _D1
-    U[2, :-2] = v[1:] * _D2
-    return U, w, coeffs[0]
+    s = np.concatenate(([0.0], v))                         # the profile, from 0 at tau = 0
+    return _stack_derivatives(s[None, :, None])[0].T, w, coeffs[0]
 
 
 def taylor_shift(coeffs, dt):
