@@ -25,8 +25,10 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -r requirements.txt
-	# Compile the IK and forward kinematics into numba's cache now, not in the first node that plans.
+	# Compile the IK, forward kinematics and long-sampling kernels into numba's cache now, not in the
+	# first node that plans.
 	$(BIN)/python -c 'from picking_planner.kinematics import ArmModel; ArmModel.from_urdf("config/picking_arm.urdf").load_ik()'
+	$(BIN)/python -c 'import picking_planner.trajectory.fast_sample'
 	touch $@
 
 # The pick-and-place cycle of Table 1 through the real nodes, then the paper's examples offline.

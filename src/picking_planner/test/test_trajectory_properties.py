@@ -231,6 +231,27 @@ def test_a_profile_the_joints_share_is_found_only_where_there_is_one():
     assert _shared_profile(coeffs[0]) is None
 
 
+@pytest.mark.parametrize('make', [
+    lambda: trajectory.quintic([0.0, 1.0, -2.0, 0.4], [1.0, -2.0, 0.5, 0.4], 2.0).shifted(0.3),
+    lambda: trajectory.cubic([0.5], [-1.5], 1.0),
+    lambda: trajectory.lspb([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0, 6.0),     # three shared segments
+])
+@pytest.mark.parametrize('beyond', [0.4, 0.0])
+def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(make, beyond, monkeypatch):
+    """The compiled one-pass sampler (numba) and the numpy fallback write the same samples,
+    clipped or not, into a segment's part of the output or all of it."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    traj = make()
+    t = np.linspace(traj.start_time - beyond, traj.end_time + beyond, 30_001)
+    assert piecewise._compiled_sampler() is not None
+    compiled = traj.sample(t)
+    monkeypatch.setattr(piecewise, '_compiled_sampler', lambda: None)
+    with_numpy = traj.sample(t)
+    for got, want in zip(compiled, with_numpy):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
+
+
 def test_concatenate_composes_segments_and_refuses_a_gap():
     a = trajectory.cubic(0.0, 1.0, 1.0)
     b = trajectory.hold(1.0, 0.5)

@@ -15,6 +15,8 @@ paper's examples); time is in seconds.
 
 from __future__ import annotations
 
+import functools
+import warnings
 from bisect import bisect_left
 
 import numpy as np
@@ -285,10 +287,15 @@ def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None):
     A chunk at a time: each chunk's power basis stays in cache and no full-length
     temporary is written, so a long sampling costs little more than writing its output.
     Given the segment's ``coeffs`` (6, n) and many times, a profile its joints share (see
-    :func:`_shared_profile`) is evaluated once and scaled per joint: a third of the products.
+    :func:`_shared_profile`) is evaluated once and scaled per joint: by the compiled
+    :func:`.fast_sample.sample_shared` in one pass, or (without numba) by numpy with a third
+    of the products.
     """
     size = t.size
     shared = _shared_profile(coeffs) if coeffs is not None and size >= _SHARED_MIN else None
+    if shared is not None and (kernel := _compiled_sampler()) is not None:
+        kernel(t, lo, hi, origin, bool(clip), *shared, out)
+        return
     basis, dst = (rows, out) if shared is None else (shared[0], np.empty((3, size)))
     powers = np.empty((_N_COEFFS, min(size, _CHUNK)))
     powers[0] = 1.0
@@ -327,7 +334,22 @@ def _shared_profile(coeffs):
     if vv > 0.0 and (np.abs(rest - np.outer(v, w)) > 1e-12 * size.max(axis=1, keepdims=True)).any():
         return None
     s = np.concatenate(([0.0], v))                         # the profile, from 0 at tau = 0
-    return _stack_derivatives(s[None, :, None])[0].T, w, coeffs[0]
+    return np.ascontiguousarray(_stack_derivatives(s[None, :, None])[0].T), w, coeffs[0]
+
+
+@functools.cache
+def _compiled_sampler():
+    """:func:`.fast_sample.sample_shared`, loaded on the first long sampling of a synchronised
+    segment; None without numba, or (with a warning) if numba cannot compile or cache it here."""
+    try:
+        from .fast_sample import sample_shared
+    except ImportError:
+        return None
+    except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: numpy answers
+        warnings.warn(f'the compiled sampler did not load ({type(exc).__name__}: {exc}); long samplings '
+                      'run with numpy', RuntimeWarning, stacklevel=3)
+        return None
+    return sample_shared
 
 
 def taylor_shift(coeffs, dt):
