@@ -8,7 +8,10 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
+from picking_planner.ros_common import stamp_key, status, status_values
+from trajectory_msgs.msg import JointTrajectory
+
+from rosstack import RELIABLE, Client, Stack, ensure_rclpy, largest_step, reach, running_stack
 
 
 def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
@@ -91,3 +94,49 @@ def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_
         # Well within the path tolerance (0.1 rad); about 0.6 mrad measured (6-9 mrad when the servo took the
         # command back in time; the exact figures are the unit tests' of the servo).
         assert float({kv.key: kv.value for kv in done.values}['max_tracking_error']) < 0.05
+
+
+def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ahead(tmp_path):
+    """The controller refuses a plan that came too late to run (a process or the transport stalled on
+    a loaded machine) and says so (``late``, with the trajectory's stamp). The planner then plans that
+    goal again from where the arm is, starting further ahead, twice at most; then it answers the goal
+    as not run. Other refusals, and late ones of other trajectories, change nothing. The test plays
+    the controller here (the real one stopped), refusing every plan as late."""
+    with running_stack('/sys7', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        plans = []
+        sub = client.create_subscription(JointTrajectory, 'joint_trajectory', client._rec(plans), RELIABLE)
+        pub = client.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
+        client.wait_for(lambda: sub.get_publisher_count() > 0 and pub.get_subscription_count() > 0, 10.0,
+                        'the planner to see the test as its controller')
+
+        def refuse(plan, late, message='the trajectory ends in the past (or within 20 ms)', key=None):
+            pub.publish(status('picking_controller', DiagnosticStatus.ERROR, f'trajectory rejected: {message}',
+                               late=late, trajectory=key or stamp_key(plan.header.stamp)))
+
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        first = client.planner_answer(mark)
+        assert first.level == DiagnosticStatus.OK and status_values(first)['attempt'] == '1', first.message
+        client.wait_for(lambda: plans, 10.0, 'the first plan')
+        refuse(plans[0][1], True, key='1.000000000')                        # another trajectory
+        refuse(plans[0][1], False, message='unknown joints [\'tail_joint\']')   # at fault itself
+        time.sleep(1.0)
+        assert len(plans) == 1
+        for attempt in (2, 3):
+            refuse(plans[-1][1], True)
+            client.wait_for(lambda: len(plans) == attempt, 10.0, f'plan {attempt}')
+        refuse(plans[-1][1], True)
+
+        def answers():
+            return [m for _, m in client.planner_status[mark['planner']:] if status_values(m).get('goal') == goal]
+        client.wait_for(lambda: len(answers()) == 4, 10.0, 'the planner to give the goal up')
+        *accepted, gave_up = answers()
+        assert [status_values(m)['attempt'] for m in accepted] == ['1', '2', '3']
+        assert all(m.level == DiagnosticStatus.OK for m in accepted)
+        assert 'again (the last plan reached the controller too late)' in accepted[1].message
+        assert gave_up.level == DiagnosticStatus.ERROR and 'too late 3 times' in gave_up.message, gave_up.message
+        stamps = [p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for _, p in plans]
+        assert stamps == sorted(stamps) and len(set(stamps)) == 3
+        time.sleep(0.5)
+        assert len(plans) == 3                                   # not planned a fourth time

@@ -25,6 +25,12 @@ MIN_LEAD = 0.02
 LEADS = (MIN_LEAD, 0.05, 0.1, 0.2)
 
 
+class LateTrajectory(ValueError):
+    """A trajectory that came too late to run as sent: it ends before it could take over, or the
+    points due by then cannot be caught up on (too far from the reference, or only beyond a
+    limit). Its sender may plan it again; a trajectory rejected otherwise is at fault itself."""
+
+
 @dataclass(frozen=True)
 class Prepared:
     """A validated trajectory, ready to take over at ``t_splice`` (see :meth:`ControllerCore.prepare`)."""
@@ -304,8 +310,11 @@ class ControllerCore:
         return self.commit(prepared, now)
 
     @staticmethod
-    def rejected(exc):
-        return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference')
+    def rejected(exc, **values):
+        """The ERROR event for a trajectory refused with ``exc``; ``late`` says whether it only came
+        too late (a :class:`LateTrajectory`), so that its sender can tell a stale plan from a bad one."""
+        return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference',
+                     {**values, 'late': isinstance(exc, LateTrajectory)})
 
     def commit(self, prepared, now):
         """Schedule a prepared trajectory to take over at its splice time.
@@ -364,7 +373,7 @@ class ControllerCore:
         offset = (start - now) if start > 0 else 0.0
         rel = times + offset
         if m and rel[-1] <= MIN_LEAD:
-            raise ValueError('the trajectory ends in the past (or within 20 ms)')
+            raise LateTrajectory('the trajectory ends in the past (or within 20 ms)')
         self._check_limits(pos, vel, acc, times=rel)
         # Points due within the lead are dropped and replaced by a lead-in from the current
         # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
@@ -379,7 +388,7 @@ class ControllerCore:
                 due = rel[~keep][-1]
                 gap = np.abs(pos[~keep][-1] - held).max()
                 if gap > self.tol.path:
-                    error = error or ValueError(
+                    error = error or LateTrajectory(
                         f'its point due at {due:+.3f} s lies {gap:.4f} rad from the current '
                         f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
                         'point a later time_from_start to move there smoothly')
@@ -390,9 +399,11 @@ class ControllerCore:
                 self._check_spline(traj)
                 break
             except ValueError as exc:
-                traj, error = None, exc
+                traj = None
                 if keep.all():                   # not late: the trajectory itself is at fault
+                    error = exc
                     break
+                error = LateTrajectory(str(exc))
         if traj is None:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {

@@ -28,7 +28,7 @@ from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 from picking_planner import cdr
 from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, joint_state_reader,
-                                        make_realtime, newest_waiting, reorder, run_node, status)
+                                        make_realtime, newest_waiting, reorder, run_node, stamp_key, status)
 
 from .core import ControllerCore, Event, Tolerances
 from .timing import LoopStats
@@ -132,21 +132,24 @@ class ControllerNode(Node):
         except ValueError:                       # points of different lengths: the message class
             msg = deserialize_message(msg, JointTrajectory)
             read = None
+        header = read.header if read is not None else msg.header
         if read is not None:
             args = (read.joint_names, read.times, read.positions, read.velocities, read.accelerations,
-                    _seconds(read.header.stamp))
+                    _seconds(header.stamp))
         else:
             pts = msg.points
             args = (msg.joint_names, [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
                     [p.positions for p in pts], [p.velocities for p in pts], [p.accelerations for p in pts],
-                    _seconds(msg.header.stamp))
+                    _seconds(header.stamp))
+        # Every answer names the trajectory by its stamp (its sender may plan again one that came too late).
+        trajectory = stamp_key(header.stamp)
         event = None
         for _ in range(2):
             started = time.perf_counter()
             try:
                 prepared = self.core.prepare(*args, self.now(), splice_delay=self._splice_delay)
             except ValueError as exc:
-                event = self.core.rejected(exc)
+                event = self.core.rejected(exc, trajectory=trajectory)
                 break
             self._splice_delay = min(max(0.005, 2.0 * (time.perf_counter() - started)), 0.05)
             with self.lock:
@@ -156,6 +159,7 @@ class ControllerNode(Node):
         if event is None:
             with self.lock:
                 event = self.core.load(*args, self.now())
+        event.values.setdefault('trajectory', trajectory)
         self._report([event])
 
     def _loop(self):

@@ -80,6 +80,21 @@ def test_a_prepared_trajectory_is_refused_when_the_state_changed_or_it_came_too_
         c.prepare(['a', 'x'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5)
 
 
+def test_a_trajectory_that_ends_before_it_could_start_is_rejected_as_late_and_only_that_one():
+    """Its sender may plan a late trajectory again; a bad one it must not."""
+    c = core()
+    late = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=11.01)
+    assert late.level == 'ERROR' and 'ends in the past' in late.message and late.values['late'] is True
+    bad = c.load(['a', 'x'], [1.0], [[0.5, 0.5]], [], [], start=0.0, now=11.0)
+    assert bad.level == 'ERROR' and 'unknown joints' in bad.message and bad.values['late'] is False
+    # Points already due, far from where the arm is: late as well.
+    behind = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.6)
+    assert behind.level == 'ERROR' and 'due at' in behind.message and behind.values['late'] is True
+    # Due points near the reference: the part still ahead runs.
+    caught_up = c.load(['a', 'b'], [0.5, 1.0], [[0.001, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.6)
+    assert caught_up.level == 'OK', caught_up.message
+
+
 def test_path_tolerance_violation_brakes_and_holds():
     c = core(path=0.05)
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)

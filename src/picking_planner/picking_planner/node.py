@@ -36,7 +36,7 @@ from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
 from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
-                         status, status_values)
+                         stamp_key, status, status_values)
 from .sent_plans import carried_points, plan_active
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -69,14 +69,14 @@ def msg_pose(pose):
     return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
 
 
-def stamp_key(stamp):
-    return f'{stamp.sec}.{stamp.nanosec:09d}'
-
-
 ZERO_KEY = '0.000000000'
 SENT_KEPT = 16       # plans remembered to tell whether the controller's reference follows them
 GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
 REPEAT_WINDOW = 30.0  # s after a goal in which the same goal again is a resend, not a new goal
+#: Times a goal is planned again when its plan reached the controller too late to run (the
+#: controller's "late" rejection: a stall in transport or in a process on a loaded machine),
+#: each time starting twice as far ahead.
+LATE_REPLANS = 2
 
 
 class PlannerNode(Node):
@@ -108,6 +108,9 @@ class PlannerNode(Node):
         self.pending = []             # goals that came before the first joint_states
         self._planning_time = {}      # kind of goal -> s its last planning took
         self._sent = deque(maxlen=SENT_KEPT)   # (trajectory, start time, joint names) of the last plans sent
+        # The newest plan sent: its trajectory's stamp key, the goal (kind, header, plan_fn), how many times
+        # it was planned again, its entry in _sent. Planned again if the controller says it came too late.
+        self._newest_plan = None
         self.create_timer(0.1, self._serve_pending)
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
         # message classes) where this middleware reads them back as the same messages.
@@ -121,6 +124,8 @@ class PlannerNode(Node):
         self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
+        self.sub_controller = self.create_subscription(DiagnosticStatus, 'controller_status',
+                                                       self._on_controller_status, RELIABLE)
         self._goals = OrderedDict()   # goal key -> [its bytes, its answer, when it came]: a resend is answered again
         self._superseded = 0          # goals answered as superseded since the last log line
         self._superseded_logged = 0.0
@@ -330,7 +335,9 @@ class PlannerNode(Node):
         self._answer(status('picking_planner', ERROR, f'{kind} goal refused: {reason}', goal=key, kind=kind))
         self.get_logger().error(f'{kind} goal refused: {reason}')
 
-    def _handle(self, kind, header, plan_fn):
+    def _handle(self, kind, header, plan_fn, attempt=0):
+        """Plan a goal and send the plan (``attempt`` > 0: again, its last plan having reached
+        the controller too late; it then starts 2**attempt times further ahead)."""
         key = stamp_key(header.stamp)
         measured = self.measured()
         if measured is None:
@@ -353,7 +360,8 @@ class PlannerNode(Node):
                 # goal took that long last time), stamped so; it must be planned with at least
                 # DELIVERY s to spare for sending and for the controller, else planned again
                 # further ahead.
-                delay = self.get_parameter('start_delay').value + 1.5 * self._planning_time.get(kind, FIRST_PLANNING[kind])
+                delay = (self.get_parameter('start_delay').value * 2 ** attempt
+                         + 1.5 * self._planning_time.get(kind, FIRST_PLANNING[kind]))
                 ref = self._reference()
                 for _ in range(4):
                     start, source, t_start, carry_from = self.start_state(delay, ref, measured)
@@ -383,17 +391,45 @@ class PlannerNode(Node):
             self._refuse(kind, key, f'the plan breaks a limit (from a {source} start: the arm\'s motion cannot '
                                     f'be carried on within it): {exc}')
             return
-        self._publish_trajectory(names, stamp, points)
+        stamp_ns = int(round(stamp * 1e9))
+        self._publish_trajectory(names, stamp_ns, points)
         self._sent.append((plan.trajectory, t_start, names))
+        self._newest_plan = (stamp_key(stamp_ns), (kind, header, plan_fn), attempt, self._sent[-1])
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
+        again = ' again (the last plan reached the controller too late)' if attempt else ''
         self._answer(status(
-            'picking_planner', OK, f'{kind} goal accepted: {plan.method}, {plan.duration:.3f} s',
+            'picking_planner', OK, f'{kind} goal accepted{again}: {plan.method}, {plan.duration:.3f} s',
             goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
-            segments=segments, planning_ms=planning_ms, **getattr(plan, 'extra', {})))
+            segments=segments, planning_ms=planning_ms, attempt=attempt + 1, **getattr(plan, 'extra', {})))
         self._publish_tool_path(own[1])
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
+
+    def _on_controller_status(self, msg):
+        """Plan the newest goal again when the controller refused its plan only for coming too
+        late (up to LATE_REPLANS times; then the goal is answered as not run)."""
+        if msg.level != ERROR or self._newest_plan is None:
+            return
+        values = status_values(msg)
+        trajectory, goal, attempt, sent = self._newest_plan
+        if values.get('late') != 'True' or values.get('trajectory') != trajectory:
+            return
+        self._newest_plan = None
+        with self.lock:
+            if sent in self._sent:           # the controller never ran it: no later plan carries on from it
+                self._sent.remove(sent)
+        kind, header = goal[:2]
+        key = stamp_key(header.stamp)
+        if attempt >= LATE_REPLANS:
+            self._answer(status('picking_planner', ERROR, f'{kind} goal not run: its plan reached the controller '
+                                f'too late {attempt + 1} times (a stalled or overloaded machine?)', goal=key, kind=kind))
+            self.get_logger().error(f'{kind} goal {key}: its plan reached the controller too late '
+                                    f'{attempt + 1} times; not planned again')
+            return
+        self.get_logger().warning(f'{kind} goal {key}: the controller got its plan too late ({msg.message}); '
+                                  'planning it again, further ahead')
+        self._handle(*goal, attempt=attempt + 1)
 
     def _controller_listens(self, wait=5.0):
         """True once a controller's subscription has matched (discovery may still be running)."""
@@ -404,15 +440,15 @@ class PlannerNode(Node):
             time.sleep(0.02)
         return True
 
-    def _publish_trajectory(self, names, t_start, points):
-        """The plan on ``joint_trajectory``, stamped with its start time."""
+    def _publish_trajectory(self, names, stamp_ns, points):
+        """The plan on ``joint_trajectory``, stamped with its start time (integer ns)."""
         t, q, qd, qdd = points
         if self._cdr:
-            self.pub_traj.publish(cdr.joint_trajectory(round(t_start * 1e9), '', names, t, q, qd, qdd))
+            self.pub_traj.publish(cdr.joint_trajectory(stamp_ns, '', names, t, q, qd, qdd))
             return
         msg = JointTrajectory()
         msg.joint_names = names
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(t_start * 1e9), 1_000_000_000)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
         for i in range(len(t)):
             p = JointTrajectoryPoint(positions=q[i].tolist(), velocities=qd[i].tolist(),
                                      accelerations=qdd[i].tolist())

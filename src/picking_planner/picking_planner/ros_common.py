@@ -103,6 +103,13 @@ def make_realtime(priority, logger):
     return True
 
 
+def stamp_key(stamp):
+    """A header stamp as text, ``'sec.nanosec'``: how goals and trajectories are named in status
+    values. ``stamp``: a builtin_interfaces/Time, or integer nanoseconds."""
+    sec, nanosec = divmod(stamp, 1_000_000_000) if isinstance(stamp, int) else (stamp.sec, stamp.nanosec)
+    return f'{sec}.{nanosec:09d}'
+
+
 def status(name, level, message, **values):
     """A DiagnosticStatus with key/value pairs (values formatted as text)."""
     msg = DiagnosticStatus()

@@ -11,7 +11,8 @@ axes x, y, z), ``--quat`` a quaternion x y z w. ``--method`` sets the planner's
 and after it. Add ``--ros-args -r __ns:=/arm2`` to talk to another arm.
 
 Exit codes: 0 the goal was reached; 1 the planner refused it; 2 bad arguments;
-3 the controller reported a failure; 4 timed out.
+3 the controller reported a failure (or the planner gave the goal up, its plans
+having reached the controller too late three times); 4 timed out.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from scipy.spatial.transform import Rotation
+
+from ..ros_common import stamp_key, status_values
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
@@ -101,10 +104,6 @@ class GoalClient(Node):
         return None
 
 
-def _values(msg):
-    return {kv.key: kv.value for kv in msg.values}
-
-
 def run(args, node):
     if args.kind == 'path' and args.arc:
         args.method = 'arc'
@@ -142,7 +141,7 @@ def run(args, node):
               file=sys.stderr)
         return EXIT_TIMEOUT
     stamp = node.get_clock().now().to_msg()
-    key = f'{stamp.sec}.{stamp.nanosec:09d}'
+    key = stamp_key(stamp)
     if args.kind == 'path':
         msg = PoseArray()
         msg.poses = [make_pose(p, quat) for p in args.pose]
@@ -160,7 +159,7 @@ def run(args, node):
     while answer is None and time.monotonic() < end:
         pub.publish(msg)
         answer = node.spin_until(lambda: next((m for m in node.planner_status
-                                               if _values(m).get('goal') == key), None),
+                                               if status_values(m).get('goal') == key), None),
                                  min(RESEND_EVERY, end - time.monotonic()))
     if answer is None:
         print(f'picking-goal: no answer from the planner within {args.timeout:g} s', file=sys.stderr)
@@ -169,7 +168,7 @@ def run(args, node):
     if answer.level != DiagnosticStatus.OK:
         print(f'refused: {answer.message}')
         return EXIT_REFUSED
-    v = _values(answer)
+    v = status_values(answer)
     print(f'planned: {answer.message} (answer after {1e3 * (t_planned - t_sent):.0f} ms)')
     for key_name in ('segments', 'peak_velocity', 'peak_acceleration'):
         if v.get(key_name):
@@ -179,8 +178,13 @@ def run(args, node):
     duration = float(v.get('duration', 0.0))
 
     def outcome():
+        # A plan the controller refused as late is planned again by the planner, which answers
+        # the goal with an ERROR should it give up.
+        for m in node.planner_status:
+            if m.level == DiagnosticStatus.ERROR and status_values(m).get('goal') == key:
+                return m
         for m in node.controller_status:
-            if m.level == DiagnosticStatus.ERROR:
+            if m.level == DiagnosticStatus.ERROR and status_values(m).get('late') != 'True':
                 return m
             if m.message.startswith('goal reached'):
                 return m
@@ -193,7 +197,7 @@ def run(args, node):
     if done.level == DiagnosticStatus.ERROR:
         print(f'failed: {done.message}')
         return EXIT_FAILED
-    dv = _values(done)
+    dv = status_values(done)
     print(f'reached: goal reached {t_done - t_sent:.2f} s after sending (plan {duration:.3f} s); '
           f'largest tracking error {float(dv.get("max_tracking_error", "nan")):.5f} rad, '
           f'final error {float(dv.get("final_error", "nan")):.5f} rad')
