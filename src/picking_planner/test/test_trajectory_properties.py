@@ -252,6 +252,28 @@ def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
 
 
+def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
+    """Without numba: silently None. numba failing (no writable cache directory, say): None and a
+    RuntimeWarning that says what did not load, why, and what answers instead."""
+    import warnings
+    from picking_planner import compiled
+    from picking_planner.trajectory import piecewise
+
+    def missing(name):
+        raise ImportError(f'No module named {name!r}')
+
+    def failing(name):
+        raise OSError('no writable cache directory')
+    monkeypatch.setattr(compiled.importlib, 'import_module', missing)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert piecewise._compiled_sampler.__wrapped__() is None
+    monkeypatch.setattr(compiled.importlib, 'import_module', failing)
+    with pytest.warns(RuntimeWarning, match=r'the compiled sampler did not load \(OSError: no writable cache '
+                                            r'directory\); long samplings run with numpy'):
+        assert piecewise._compiled_sampler.__wrapped__() is None
+
+
 def test_concatenate_composes_segments_and_refuses_a_gap():
     a = trajectory.cubic(0.0, 1.0, 1.0)
     b = trajectory.hold(1.0, 0.5)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compiled import load
 from .errors import Unreachable
 from .urdf import chain, default_tip, parse_urdf
 
@@ -293,13 +294,8 @@ class ArmModel:
         and singular values for 64 configurations within the limits. None without
         numba, or (with a warning) if numba cannot compile or cache them here.
         """
-        try:
-            from . import fast_fk
-        except ImportError:
-            return None
-        except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: numpy answers
-            warnings.warn(f'the compiled forward kinematics did not load ({type(exc).__name__}: {exc}); '
-                          'they run vectorised with numpy', RuntimeWarning, stacklevel=2)
+        fast_fk = load(f'{__package__}.fast_fk', 'the compiled forward kinematics', 'they run vectorised with numpy')
+        if fast_fk is None:
             return None
         bound = fast_fk.Bound(self)
         rng = np.random.default_rng(0)

@@ -18,6 +18,8 @@ import warnings
 
 import numpy as np
 
+from ..compiled import load
+
 TWO_PI = 2.0 * np.pi
 _Z = np.array([0.0, 0.0, 1.0])
 _Y = np.array([0.0, 1.0, 0.0])
@@ -142,13 +144,8 @@ class _ClosedForm:
         for the self-test poses (seeded off their configurations). None without numba,
         or (with a warning) if numba cannot compile or cache it here.
         """
-        try:
-            from . import fast_ik
-        except ImportError:
-            return None
-        except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: the vectorised path answers
-            warnings.warn(f'the compiled IK did not load ({type(exc).__name__}: {exc}); '
-                          'IK runs the vectorised closed form', RuntimeWarning, stacklevel=2)
+        fast_ik = load(f'{__package__}.fast_ik', 'the compiled IK', 'IK runs the vectorised closed form')
+        if fast_ik is None:
             return None
         bound = fast_ik.Bound(self)
         Q, T = self._test_poses()

@@ -16,11 +16,11 @@ paper's examples); time is in seconds.
 from __future__ import annotations
 
 import functools
-import warnings
 from bisect import bisect_left
 
 import numpy as np
 
+from ..compiled import load
 from ._checks import as_duration, as_joint_vector, as_time_array, time_array_and_extremes
 
 #: Largest polynomial degree stored (quintic).
@@ -341,15 +341,8 @@ def _shared_profile(coeffs):
 def _compiled_sampler():
     """:func:`.fast_sample.sample_shared`, loaded on the first long sampling of a synchronised
     segment; None without numba, or (with a warning) if numba cannot compile or cache it here."""
-    try:
-        from .fast_sample import sample_shared
-    except ImportError:
-        return None
-    except Exception as exc:  # noqa: BLE001 - e.g. no writable cache directory: numpy answers
-        warnings.warn(f'the compiled sampler did not load ({type(exc).__name__}: {exc}); long samplings '
-                      'run with numpy', RuntimeWarning, stacklevel=3)
-        return None
-    return sample_shared
+    fast_sample = load(f'{__package__}.fast_sample', 'the compiled sampler', 'long samplings run with numpy')
+    return None if fast_sample is None else fast_sample.sample_shared
 
 
 def taylor_shift(coeffs, dt):
