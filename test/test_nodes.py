@@ -222,9 +222,15 @@ def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
     settles_at(client, [0.6, -0.2, 0.45])
 
 
+#: A second arm's loops at 250 Hz: two stacks at 1 kHz are more than this 2-core machine carries (row 6 of
+#: the benchmarks: both loops fall to about 550 Hz, and a stall of the kind then seen, 0.55 s without
+#: joint_states, rightly aborts a move), and what this test checks is the namespaces.
+SECOND_ARM_AT_250_HZ = {'sim_args': ('-p', 'servo_rate:=250.0'), 'controller_args': ('-p', 'update_rate:=250.0')}
+
+
 def test_second_arm_in_its_own_namespace(arm1, tmp_path):
     _, client1 = arm1
-    with running_stack('/sys2', tmp_path) as (_, client2):
+    with running_stack('/sys2', tmp_path, **SECOND_ARM_AT_250_HZ) as (_, client2):
         before1 = client1.last_positions()
         reach(client2, lambda: client2.send_pose([0.5, 0.2, 0.35]))
         settles_at(client2, [0.5, 0.2, 0.35])
