@@ -323,29 +323,29 @@ class PickCycle:
         return max(wanted, 1.02 * need)
 
     def _gripper(self, plan, gripper_start):
-        """The finger opening over the plan: closes during the grasp dwell, opens during release."""
+        """The finger opening over the plan: closes during the grasp dwell, opens during release.
+
+        One quintic per segment of the plan (a hold where the fingers keep their opening),
+        all built at once.
+        """
         s = self.s
-        g0 = s.gripper_open if gripper_start is None else float(gripper_start)
-        parts, t = [], 0.0
-        g = g0
-        events = {}
+        g = s.gripper_open if gripper_start is None else float(gripper_start)
+        ends, events = [], {}
         for seg in plan.segments:
+            start = g
             if seg.label == 'grasp':
-                parts.append(trajectory.quintic(g, s.gripper_closed, seg.duration))
                 g = s.gripper_closed
                 events['grasp_start'], events['grasp_end'] = seg.start, seg.start + seg.duration
             elif seg.label == 'release':
-                parts.append(trajectory.quintic(g, s.gripper_open, seg.duration))
                 g = s.gripper_open
                 events['release_start'], events['release_end'] = seg.start, seg.start + seg.duration
-            elif seg.label in ('brake', 'P0 home') and g != s.gripper_open \
-                    and seg.duration >= self._gripper_time(0.0):
-                parts.append(trajectory.quintic(g, s.gripper_open, seg.duration))
+            elif seg.label in ('brake', 'P0 home') and seg.duration >= self._gripper_time(0.0):
                 g = s.gripper_open
-            else:
-                parts.append(trajectory.hold(g, seg.duration))
-            t += seg.duration
-        return trajectory.concatenate(parts), events
+            ends.append((start, g, seg.duration))
+        g0, g1, durations = np.array(ends).T
+        coeffs = trajectory.hermite_coeffs(g0, 0.0, 0.0, g1, 0.0, 0.0, durations)
+        breaks = np.concatenate(([0.0], np.cumsum(durations)))
+        return trajectory.PiecewisePolynomial(breaks, coeffs[:, :, None]), events
 
 
 _LABELS = {'P1': 'approach', 'P2': 'the apple', 'P3': 'lift', 'P4': 'above the box', 'P5': 'into the box'}

@@ -285,6 +285,28 @@ def test_concatenate_composes_segments_and_refuses_a_gap():
         trajectory.concatenate([a, trajectory.cubic(2.0, 3.0, 1.0)])
 
 
+@given(via_paths(), via_paths(), st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20))
+@settings(deadline=None)
+def test_stacked_trajectories_keep_each_ones_motion(first, second, fractions):
+    """Side by side over the union of their breaks, each trajectory moves as it did alone
+    (pieces that now start inside one of its segments re-expanded, the others taken as they are)."""
+    a = trajectory.via_lspb(first[0], first[1], 1e6)
+    b = trajectory.via_lspb(second[0], second[1], 1e6)
+    b = b.stretched(a.duration / b.duration)
+    both = trajectory.stack([a, b])
+    n = a.n_joints
+    # Inside the pieces (at a break the acceleration of a blend may step), every piece at least once.
+    times = np.concatenate([np.array(fractions) * a.duration, 0.5 * (both.breaks[1:] + both.breaks[:-1])])
+    breaks = np.concatenate([a.breaks, b.breaks])
+    times = times[np.abs(times[:, None] - breaks[None, :]).min(axis=1) > 1e-9 * a.duration]
+    for alone, columns in ((a, slice(0, n)), (b, slice(n, None))):
+        for x, y in zip(alone.sample(times), both.sample(times)):
+            scale = 1.0 + np.abs(x).max()
+            assert np.abs(y[:, columns] - x).max() <= 1e-9 * scale
+    for x, y in zip(a.end_state(), a.sample(a.end_time)):
+        assert x == pytest.approx(y[0], rel=1e-12, abs=1e-12)
+
+
 @given(via_paths(), st.lists(st.floats(-0.5, 1.5), min_size=1, max_size=20))
 @settings(deadline=None)
 def test_state_at_is_sample_at_one_time(path, fractions):

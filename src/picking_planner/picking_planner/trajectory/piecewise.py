@@ -222,7 +222,11 @@ class PiecewisePolynomial:
                 return self._coeffs[0, 0].copy(), np.zeros(n), np.zeros(n)
             return self.start_state()
         k = bisect_left(b, t) - 1                # segment k covers (b[k], b[k+1]], as in sample()
-        tau = t - b[k]
+        return self._state_in(k, t - b[k])
+
+    def _state_in(self, k, tau):
+        """``(q, qd, qdd)`` at local time ``tau`` of segment ``k``: one small product."""
+        n = self._coeffs.shape[2]
         tau2 = tau * tau
         rows = self._rows[k] @ np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
         return rows[:n], rows[n:2 * n], rows[2 * n:]
@@ -235,10 +239,8 @@ class PiecewisePolynomial:
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
-            rows = np.empty((3 * self.n_joints, 1))
-            b = self._breaks
-            _eval_block(b[-1:], b[-2], b[-1], b[-2], self._rows[-1], rows)
-            q, qd, qdd = np.split(rows[:, 0], 3)
+            b = self._break_list
+            q, qd, qdd = self._state_in(-1, b[-1] - b[-2])
             for x in (q, qd, qdd):
                 x.flags.writeable = False
             self._end_state = (q, qd, qdd)
@@ -483,7 +485,11 @@ def stack(trajectories):
     blocks = []
     for tr in trajectories:
         seg = np.clip(np.searchsorted(tr.breaks, mids, side='right') - 1, 0, len(tr.breaks) - 2)
-        blocks.append(taylor_shift(tr.coeffs[seg], starts - tr.breaks[seg]))
+        coeffs, shift = tr.coeffs[seg], starts - tr.breaks[seg]
+        moved = shift != 0.0              # the intervals that start inside one of its segments
+        if moved.any():
+            coeffs[moved] = taylor_shift(coeffs[moved], shift[moved])
+        blocks.append(coeffs)
     return PiecewisePolynomial(union, np.concatenate(blocks, axis=2))
 
 
