@@ -250,6 +250,13 @@ class Planner:
         except Unreachable as exc:
             raise Unreachable(f'{label}: {exc}') from None
 
+    def _limit_use(self, traj):
+        """How far ``traj`` goes into the scaled limits: the largest |qd| / vmax and sqrt(|qdd| / amax)
+        (stretched that many times, it reaches them)."""
+        t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
+        _, qd, qdd = traj.sample(t)
+        return max(float(np.max(np.abs(qd) / self._vmax)), float(np.sqrt(np.max(np.abs(qdd) / self._amax))))
+
     def _jerk_ratio(self, traj, t):
         """Largest |jerk| over the scaled jerk limit along ``traj`` at times ``t``."""
         jerk = np.abs(traj.jerk(t))[:, :self.arm.dof]
@@ -509,8 +516,9 @@ class Planner:
         """Joint via points timed from the limits, stretched until feasible.
 
         Each segment starts from the rest-to-rest time of its slowest joint (60 % of
-        it for via-point LSPB, which passes its via points at speed); the durations
-        then grow by 4 % until the blends fit and every limit holds. ``start`` and
+        it for via-point LSPB, which passes its via points at speed); the durations then
+        grow by 4 % until the blends fit and the scaled limits hold (a quintic spline
+        too fast for them stretches by exactly the factor it needs). ``start`` and
         ``end``: ``(velocity, acceleration)`` at the first and last point, ``optimal`` only
         (default at rest).
         """
@@ -535,14 +543,21 @@ class Planner:
         for _ in range(60):
             try:
                 if method == 'via_lspb':
-                    # The timing alone first (microseconds): the trajectory is built and
-                    # checked only once its blends fit and its lines keep the speed limit.
+                    # The timing alone first (microseconds): the trajectory is built once its blends
+                    # fit and its lines keep the scaled speed limit (its fastest speeds are its lines':
+                    # the blends join them). A line ending in a blend from rest slows far more than
+                    # its stretch near the shortest timing, hence small steps.
                     _, vel = trajectory.via_lspb_timing(qs, durations, self._amax)
-                    if (np.abs(vel) > self.arm.max_velocity + 1e-6).any():
-                        raise ValueError('a line is faster than the velocity limit')
+                    if (np.abs(vel) > self._vmax).any():
+                        raise ValueError('a line is faster than the scaled velocity limit')
                     traj = trajectory.via_lspb(qs, durations, self._amax)
                 else:
+                    # The spline through the points stretched k times: speeds / k, accelerations / k^2.
                     traj = trajectory.quintic_via(qs, durations)
+                    over = self._limit_use(traj)
+                    if over > 1.0:
+                        durations = durations * (over * STRETCH_TIGHT)
+                        continue
                 self._check(traj, method)
                 return traj
             except ValueError as exc:       # blends do not fit, or a limit is broken: slow down

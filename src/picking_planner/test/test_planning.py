@@ -162,6 +162,17 @@ def test_unreachable_apple_names_the_knot_point(arm, planner):
         cycle.plan((HOME, Z, Z), pose_matrix([1.6, 0.0, 0.6], DOWN))
 
 
+@pytest.mark.parametrize('transfer', ['via_lspb', 'quintic_via', 'optimal'])
+def test_a_slowed_cycle_and_via_path_keep_the_scaled_limits(arm, transfer):
+    """At half speed every segment stays within half the velocity limits and a quarter of the
+    accelerations (via-point LSPB once timed its lines against the full limits: 0.8 of them)."""
+    slow = Planner(arm, PlannerSettings(speed_scale=0.5, path_method=transfer))
+    plan = PickCycle(slow, PickSettings(transfer_method=transfer).validate(arm)).plan((HOME, Z, Z), APPLE)
+    _within_limits(arm, plan, scale=0.5)
+    path = slow.plan_path((HOME, Z, Z), [pose_matrix([0.55, 0.3, 0.45], DOWN), pose_matrix([0.5, -0.4, 0.4], DOWN)])
+    _within_limits(arm, path, scale=0.5)
+
+
 @pytest.mark.parametrize('bad', [dict(home_positions=(0.0,) * 5), dict(approach_distance=0.0),
                                  dict(lift_method='jump'), dict(gripper_closed=0.2),
                                  dict(box_position=(0.0, float('nan'), 0.3))])
