@@ -244,12 +244,14 @@ def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(
     from picking_planner.trajectory import piecewise
     traj = make()
     t = np.linspace(traj.start_time - beyond, traj.end_time + beyond, 30_001)
+    times = (t, t[::-1], np.linspace(traj.start_time - beyond, traj.end_time + beyond, 60_002)[::2])  # strided
     assert piecewise._compiled_sampler() is not None
-    compiled = traj.sample(t)
+    compiled = [traj.sample(x) for x in times]
     monkeypatch.setattr(piecewise, '_compiled_sampler', lambda: None)
-    with_numpy = traj.sample(t)
-    for got, want in zip(compiled, with_numpy):
-        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
+    with_numpy = [traj.sample(x) for x in times]
+    for one, other in zip(compiled, with_numpy):
+        for got, want in zip(one, other):
+            np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
 
 
 def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):

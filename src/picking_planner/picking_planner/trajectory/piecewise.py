@@ -176,8 +176,8 @@ class PiecewisePolynomial:
             edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
             for k in np.flatnonzero(edges[1:] > edges[:-1]):
                 lo, hi = edges[k], edges[k + 1]
-                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows[:, lo:hi], outside_any,
-                            self._coeffs[k])
+                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows, outside_any,
+                            self._coeffs[k], col=lo)
             if order is not None:
                 unsorted = np.empty_like(rows)
                 unsorted[:, order] = rows
@@ -280,9 +280,10 @@ def _stack_derivatives(coeffs):
     return out
 
 
-def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None):
+def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None, col=0):
     """Write q, qd, qdd at times ``t`` (clipped to ``[lo, hi]``, local to ``origin``) into
-    ``out`` (3n, len(t)), from one segment's ``rows`` (3n, 6) of stacked coefficients.
+    ``out[:, col:col + len(t)]`` (3n rows), from one segment's ``rows`` (3n, 6) of stacked
+    coefficients.
     ``clip=False`` when no time lies outside ``[lo, hi]``: the clip (a quarter of the
     power basis's cost) is skipped.
 
@@ -296,8 +297,9 @@ def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None):
     size = t.size
     shared = _shared_profile(coeffs) if coeffs is not None and size >= _SHARED_MIN else None
     if shared is not None and (kernel := _compiled_sampler()) is not None:
-        kernel(t, lo, hi, origin, bool(clip), *shared, out)
+        kernel(np.ascontiguousarray(t), lo, hi, origin, bool(clip), *shared, out, col)
         return
+    out = out[:, col:col + size]
     basis, dst = (rows, out) if shared is None else (shared[0], np.empty((3, size)))
     powers = np.empty((_N_COEFFS, min(size, _CHUNK)))
     powers[0] = 1.0
