@@ -530,13 +530,16 @@ class Planner:
         durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
         if method == 'via_lspb' and len(durations) > 1:
             # Interior via points are passed at speed, not stopped at: start from 60 %, but not
-            # below what any timing needs: no segment faster than the speed limit on average,
-            # and the first and last long enough to blend from and to rest at the acceleration
-            # used (T^2 >= 2 |dq| / a, the root of the blend time).
+            # below the timing whose lines keep the speed limit v. An interior line runs at
+            # dq / T. The first and last, which blend from and to rest at a, run at
+            # 2 dq / (T + sqrt(T^2 - 2 dq / a)): within v from T = dq / v + v / 2a on, and from
+            # their shortest time, T = sqrt(2 dq / a), where dq < v^2 / 2a.
             dq = np.abs(np.diff(qs, axis=0))
-            need = np.max(dq / self._vmax, axis=1)
+            v, a = self._vmax, self._amax
+            need = np.max(dq / v, axis=1)
             for k in (0, -1):
-                need[k] = max(need[k], float(np.max(np.sqrt(2.0 * dq[k] / self._amax))))
+                need[k] = float(np.max(np.where(dq[k] >= v * v / (2.0 * a), dq[k] / v + v / (2.0 * a),
+                                                np.sqrt(2.0 * dq[k] / a))))
             durations = np.maximum(0.6 * durations, need)
         durations = np.maximum(durations, 2 * self.settings.sample_period)
         last = None
@@ -548,7 +551,7 @@ class Planner:
                     # the blends join them). A line ending in a blend from rest slows far more than
                     # its stretch near the shortest timing, hence small steps.
                     _, vel = trajectory.via_lspb_timing(qs, durations, self._amax)
-                    if (np.abs(vel) > self._vmax).any():
+                    if (np.abs(vel) > self._vmax * (1.0 + 1e-9)).any():
                         raise ValueError('a line is faster than the scaled velocity limit')
                     traj = trajectory.via_lspb(qs, durations, self._amax)
                 else:

@@ -173,6 +173,17 @@ def test_a_slowed_cycle_and_via_path_keep_the_scaled_limits(arm, transfer):
     _within_limits(arm, path, scale=0.5)
 
 
+def test_via_lspb_lines_run_at_the_speed_limit_where_it_binds(arm):
+    """Long moves through a via point: the timing starts where the lines just keep the scaled speed
+    limit (an end line blends from rest: T = dq / v + v / 2a), neither above it nor far below."""
+    planner = Planner(arm, PlannerSettings(speed_scale=0.5))
+    qs = np.array([HOME, HOME + [1.2, 0.3, -0.3, 0.5, 0.0, 0.8], HOME + [2.4, 0.0, 0.0, 0.9, 0.2, 1.6]])
+    traj = planner._via(qs, 'via_lspb')
+    _, qd, _ = traj.sample(np.linspace(0.0, traj.duration, 4000))
+    use = np.max(np.abs(qd) / planner._vmax)
+    assert 0.999 <= use <= 1.0 + 1e-9
+
+
 @pytest.mark.parametrize('bad', [dict(home_positions=(0.0,) * 5), dict(approach_distance=0.0),
                                  dict(lift_method='jump'), dict(gripper_closed=0.2),
                                  dict(box_position=(0.0, float('nan'), 0.3))])
