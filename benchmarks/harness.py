@@ -9,6 +9,7 @@ from __future__ import annotations
 import gc
 import platform
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -51,8 +52,19 @@ def fmt_time(seconds):
 
 def machine():
     import os
-    return (f'{platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
+    return (f'{cpu_model() or platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
             f'Python {platform.python_version()}, numpy {np.__version__}')
+
+
+def cpu_model():
+    """The CPU's model name from ``/proc/cpuinfo`` (Linux), else ''."""
+    try:
+        for line in Path('/proc/cpuinfo').read_text().splitlines():
+            if line.startswith('model name'):
+                return f'{line.split(":", 1)[1].strip()} ({platform.machine()})'
+    except OSError:
+        pass
+    return ''
 
 
 def cpu_times():
