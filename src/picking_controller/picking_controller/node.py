@@ -53,6 +53,10 @@ class ControllerNode(Node):
         self.thread_priority = int(get('thread_priority', 0))
         if not 0 <= self.thread_priority <= 99:
             raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
+        executor_priority = int(get('executor_priority', 0))
+        if not (executor_priority == 0 or 0 < executor_priority < self.thread_priority):
+            raise ValueError(f'executor_priority must be 0 (normal) or 1 to thread_priority - 1 '
+                             f'({self.thread_priority - 1}), got {executor_priority}')
         if not self.rate > 0:
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
         tol = Tolerances(path=get('path_tolerance', 0.1), goal=get('goal_tolerance', 0.005),
@@ -82,6 +86,11 @@ class ControllerNode(Node):
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name='control', daemon=True)
         self._thread.start()
+        # This thread goes on to run the executor: trajectories (about 2 ms of Python each), status,
+        # parameters. It shares the GIL with the loop; at normal priority, any real-time thread on
+        # the machine (another arm's loops) can preempt it while it holds the GIL, and the loop
+        # waits for it (priority inversion). Just below the loop, it is not preempted that way.
+        make_realtime(executor_priority, self.get_logger(), 'the executor thread')
         self.get_logger().info(f'controlling {len(self.core.names)} joints at {self.rate:g} Hz; waiting for joint_states')
 
     @staticmethod

@@ -86,18 +86,18 @@ def run_node(make_node, args=None):
     return 0
 
 
-def make_realtime(priority, logger):
+def make_realtime(priority, logger, what='the loop thread'):
     """Run the calling thread under SCHED_FIFO at ``priority`` (1-99); 0 leaves it alone.
 
     Needs CAP_SYS_NICE or an rtprio limit (``ulimit -r``); without them it says so
-    and goes on at normal priority. Returns True when the thread is real-time.
+    (naming ``what``) and goes on at normal priority. Returns True when the thread is real-time.
     """
     if priority <= 0:
         return False
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
     except (PermissionError, OSError, AttributeError) as exc:
-        logger.warning(f'could not run the loop thread under SCHED_FIFO priority {priority} ({exc}); '
+        logger.warning(f'could not run {what} under SCHED_FIFO priority {priority} ({exc}); '
                        'running at normal priority (grant CAP_SYS_NICE or an rtprio limit to use it)')
         return False
     return True
