@@ -4,9 +4,10 @@ Where every joint of a segment follows one profile, ``q_j(tau) = c0_j + w_j s(ta
 (see :func:`.piecewise._shared_profile`), a sampling of thousands of times costs
 little more than writing its output (3 x n_joints doubles a sample): a cache-sized
 chunk of ``s``, ``s'`` and ``s''`` is evaluated by Horner's scheme, then scaled
-into each output row (each loop over contiguous memory, so that LLVM vectorises it). numpy needs a dozen passes over the samples for the same
-(the power basis, a small matrix product, the scaling and the start positions),
-and the small product alone cost more than the output's write.
+into each output row, every loop over contiguous memory so that LLVM vectorises
+it. numpy needs a dozen passes over the samples for the same (the power basis, a
+small matrix product, the scaling and the start positions), and the small product
+alone cost more than the output's write.
 
 Imported by :mod:`.piecewise` only when a segment is sampled at thousands of
 times (never by a controller's per-tick sampling), so no process loads numba for
