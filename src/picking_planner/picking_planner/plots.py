@@ -37,8 +37,9 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
     n = q.shape[1]
     labels = labels or [f'joint {j + 1}' for j in range(n)]
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5))
-    for ax, data, name in zip(axes, (q, qd, qdd),
-                              (f'position [{unit}]', f'velocity [{unit}/s]', f'acceleration [{unit}/s²]')):
+    units = (f' [{unit}]', f' [{unit}/s]', f' [{unit}/s²]') if unit else ('', ' [1/s]', ' [1/s²]')
+    for ax, data, name in zip(axes, (q, qd, qdd), (f'{what}{u}' for what, u in zip(
+            ('position', 'velocity', 'acceleration'), units))):
         for j in range(n):
             ax.plot(t, data[:, j], label=labels[j])
         for m in marks:
@@ -46,9 +47,13 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
         ax.set_ylabel(name)
         ax.grid(True, alpha=0.3)
     axes[0].set_title(title)
-    axes[0].legend(loc='best', fontsize='small', ncol=min(n, 6))
     axes[-1].set_xlabel('time [s]')
-    fig.tight_layout()
+    # Below the plots, not over the curves (seven joint names fill an axis' width); none for one joint.
+    rows = -(-n // 4) if n > 1 else 0
+    if rows:
+        fig.legend(*axes[0].get_legend_handles_labels(), loc='lower center', fontsize='small', ncol=min(n, 4),
+                   frameon=False)
+    fig.tight_layout(rect=(0.0, 0.035 * rows, 1.0, 1.0))
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
