@@ -53,7 +53,7 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
     if rows:
         fig.legend(*axes[0].get_legend_handles_labels(), loc='lower center', fontsize='small', ncol=min(n, 4),
                    frameon=False)
-    fig.tight_layout(rect=(0.0, 0.035 * rows, 1.0, 1.0))
+    fig.tight_layout(rect=(0.0, 0.22 * rows / fig.get_figheight(), 1.0, 1.0))     # 0.22 in a legend row
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)

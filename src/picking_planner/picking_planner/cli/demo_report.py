@@ -218,16 +218,17 @@ def _check_mcap(path):
 def _plot_error(path, t, err, names):
     from ..plots import _pyplot
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(8, 4.6))
     for j, n in enumerate(names):
-        scale, unit = (np.degrees(1.0), '°') if n != 'gripper_joint' else (1e3, ' mm (gripper)')
-        ax.plot(t, err[:, j] * scale, label=f'{n}' + ('' if unit == '°' else unit))
+        scale, unit = (np.degrees(1.0), '°') if n != 'gripper_joint' else (1e3, 'mm')
+        ax.plot(t, err[:, j] * scale, label=f'{n} [{unit}]')
     ax.set_xlabel('time [s]')
-    ax.set_ylabel('measured − planned [°]')
+    ax.set_ylabel('measured − planned [° (gripper: mm)]')
     ax.set_title('Tracking error over the pick cycle')
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize='small', ncol=2)
-    fig.tight_layout()
+    # Below the plot, not over the curves.
+    fig.legend(*ax.get_legend_handles_labels(), loc='lower center', fontsize='small', ncol=4, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.22 * -(-len(names) // 4) / fig.get_figheight(), 1.0, 1.0))   # 0.22 in a row
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
