@@ -261,11 +261,16 @@ def test_the_controllers_executor_thread_runs_just_below_its_loop(arm1):
     assert threads[pid] == (1, 40)                  # the main thread: the executor
 
 
-def test_an_executor_priority_not_below_the_loops_is_refused(run_tool):
-    done = run_tool('picking-controller', '--ros-args', '--params-file', CONFIG / 'controller.yaml',
-                    '-p', 'executor_priority:=50', timeout=60)
+@pytest.mark.parametrize('node, config, setting, reason', [
+    ('picking-controller', 'controller.yaml', 'executor_priority:=50',
+     'executor_priority must be 0 (normal) or 1 to thread_priority - 1 (49), got 50'),
+    ('picking-controller', 'controller.yaml', 'loop_phase:=1.0', 'loop_phase must be -1 (free running) or in [0, 1)'),
+    ('picking-sim', 'sim.yaml', 'loop_phase:=-0.5', 'loop_phase must be -1 (free running) or in [0, 1)'),
+])
+def test_bad_loop_settings_are_refused_at_start(run_tool, node, config, setting, reason):
+    done = run_tool(node, '--ros-args', '--params-file', CONFIG / config, '-p', setting, timeout=60)
     assert done.returncode == 2, done.stderr
-    assert 'executor_priority must be 0 (normal) or 1 to thread_priority - 1 (49), got 50' in done.stderr
+    assert reason in done.stderr
 
 
 def _rss_mb(pid):

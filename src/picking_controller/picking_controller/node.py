@@ -27,8 +27,9 @@ from trajectory_msgs.msg import JointTrajectory
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 from picking_planner import cdr
-from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, joint_state, joint_state_reader,
-                                        make_realtime, newest_waiting, reorder, run_node, stamp_key, status)
+from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, check_loop_phase, joint_state,
+                                        joint_state_reader, loop_origin, make_realtime, newest_waiting, reorder,
+                                        run_node, stamp_key, status)
 
 from .core import ControllerCore, Event, Tolerances
 from .timing import LoopStats
@@ -59,6 +60,7 @@ class ControllerNode(Node):
                              f'({self.thread_priority - 1}), got {executor_priority}')
         if not self.rate > 0:
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
+        self.loop_phase = check_loop_phase(get('loop_phase', -1.0))
         tol = Tolerances(path=get('path_tolerance', 0.1), goal=get('goal_tolerance', 0.005),
                          goal_time=get('goal_time_tolerance', 2.0),
                          stopped_velocity=get('stopped_velocity_tolerance', 0.02),
@@ -175,7 +177,7 @@ class ControllerNode(Node):
         """The control loop: absolute deadlines, so the rate does not drift."""
         make_realtime(self.thread_priority, self.get_logger())
         period = 1.0 / self.rate
-        next_t = time.monotonic()
+        next_t = loop_origin(period, self.loop_phase)
         stats = self.loop_stats
         # The command's bytes laid out once, the stamp and values written at every tick (where
         # this middleware reads our bytes; else one message, refilled).
@@ -210,8 +212,8 @@ class ControllerNode(Node):
                     cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
                     self.pub_cmd.publish(cmd)
             delay = next_t - time.monotonic()
-            if delay < -period:
-                next_t = time.monotonic()        # too far behind: resynchronise, do not burst
+            if delay < -period:                  # too far behind: resynchronise, do not burst
+                next_t = loop_origin(period, self.loop_phase)
             # Always sleep a little: a real-time thread that never sleeps starves the rest.
             time.sleep(max(delay, MIN_SLEEP))
 

@@ -68,3 +68,24 @@ def test_reset_and_empty():
 def test_bad_period(period):
     with pytest.raises(ValueError):
         LoopStats(period)
+
+
+@pytest.mark.parametrize('phase', [0.0, 0.25, 0.5, 0.999])
+@pytest.mark.parametrize('now', [10.0004, 12345.6789012, 0.0])
+def test_a_phased_loop_counts_from_its_own_moment_of_the_period(phase, now):
+    """The origin lies ``phase`` of a period past a whole number of periods, within one period
+    before ``now``: loops given different phases wake at different moments whenever they start."""
+    from picking_planner.ros_common import loop_origin
+    period = 1e-3
+    origin = loop_origin(period, phase, now)
+    assert now - period < origin <= now + 1e-12
+    assert (origin / period - phase) == pytest.approx(round(origin / period - phase), abs=1e-6)
+
+
+def test_a_free_running_loop_counts_from_now_and_a_phase_outside_the_period_is_refused():
+    from picking_planner.ros_common import check_loop_phase, loop_origin
+    assert loop_origin(1e-3, -1.0, 3.14159) == 3.14159
+    assert check_loop_phase(-1) == -1.0 and check_loop_phase(0.5) == 0.5
+    for bad in (1.0, -0.5, 2.0, math.nan):
+        with pytest.raises(ValueError, match='loop_phase must be -1'):
+            check_loop_phase(bad)

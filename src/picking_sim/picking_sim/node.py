@@ -23,8 +23,8 @@ from std_msgs.msg import String
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 from picking_planner import cdr
-from picking_planner.ros_common import (LatestMessage, joint_state, joint_state_reader, make_realtime, reorder,
-                                        run_node)
+from picking_planner.ros_common import (LatestMessage, check_loop_phase, joint_state, joint_state_reader,
+                                        loop_origin, make_realtime, reorder, run_node)
 
 from .servo import Servo, ServoParams
 
@@ -62,6 +62,7 @@ class SimNode(Node):
                            command_timeout=p['command_timeout'])
         self.noise_std = float(p['noise_std'])
         self.thread_priority = int(p['thread_priority'])
+        self.loop_phase = check_loop_phase(p['loop_phase'])
         if not 0 <= self.thread_priority <= 99:
             raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         self.rng = np.random.default_rng()
@@ -88,7 +89,7 @@ class SimNode(Node):
             'noise_std': 0.0, 'command_timeout': 0.05,
             'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
             'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
-            'servo.velocity_margin': 1.2, 'thread_priority': 0,
+            'servo.velocity_margin': 1.2, 'thread_priority': 0, 'loop_phase': -1.0,
         }
         out = {}
         for name, value in defaults.items():
@@ -123,8 +124,9 @@ class SimNode(Node):
         """
         make_realtime(self.thread_priority, self.get_logger())
         dt = self.servo.dt
-        start = time.monotonic()
-        t0 = self.get_clock().now().nanoseconds * 1e-9
+        now = time.monotonic()
+        start = loop_origin(dt, self.loop_phase, now)
+        t0 = self.get_clock().now().nanoseconds * 1e-9 - (now - start)    # the ROS time at start
         done = 0
         commanded = False
         reported, stalls, worst = -np.inf, 0, 0.0      # stalls are reported at most once a second
