@@ -28,7 +28,9 @@ LEADS = (MIN_LEAD, 0.05, 0.1, 0.2)
 class LateTrajectory(ValueError):
     """A trajectory that came too late to run as sent: it ends before it could take over, or the
     points due by then cannot be caught up on (too far from the reference, or only beyond a
-    limit). Its sender may plan it again; a trajectory rejected otherwise is at fault itself."""
+    limit), or it was planned from a reference the controller no longer follows (its first point
+    is not where the reference will be, and the lead-in from there breaks a limit). Its sender
+    may plan it again; a trajectory rejected otherwise is at fault itself."""
 
 
 @dataclass(frozen=True)
@@ -400,14 +402,25 @@ class ControllerCore:
                 break
             except ValueError as exc:
                 traj = None
-                if keep.all():                   # not late: the trajectory itself is at fault
+                if keep.all():
+                    # Not late. Planned from another reference (the sender's view of a plan this
+                    # controller did not run, say), it may only be the lead-in that breaks the limit:
+                    # stale, its sender may plan it again; else the trajectory itself is at fault.
                     error = exc
+                    if self._starts_elsewhere(now + rel[0], pos[0], None if vel is None else vel[0]):
+                        error = LateTrajectory(f'{exc} (its first point is not where the current reference '
+                                               'will be: planned from another reference?)')
                     break
                 error = LateTrajectory(str(exc))
         if traj is None:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}))
+
+    def _starts_elsewhere(self, t, q, qd, tol=1e-6):
+        """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""
+        ref_q, ref_qd, _ = self._commanded(*self._reference_at(t))
+        return bool(np.abs(ref_q - q).max() > tol or (qd is not None and np.abs(ref_qd - qd).max() > tol))
 
     def _commanded(self, q, qd, qdd):
         """A reference state held within the limits, as :meth:`command` sends it: what a new

@@ -211,6 +211,18 @@ def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
     assert 'beyond the limit 10' in reports[0].message and float(reports[0].values['acceleration']) > 10
 
 
+def test_a_trajectory_planned_from_another_reference_is_refused_as_stale_and_a_bad_one_is_not():
+    """A plan whose lead-in breaks a limit only because it starts away from where the reference
+    will be (made for a plan this controller did not run) may be planned again: refused as late.
+    One that starts there and breaks the limit by itself is at fault: not late."""
+    c = core()                                                # holding [0, 0] at rest
+    stale = c.load(['a', 'b'], [0.1, 0.5], [[0.5, 0.0], [0.6, 0.0]], [], [], start=0.0, now=1.0)
+    assert stale.level == 'ERROR' and 'not where the current reference will be' in stale.message
+    assert stale.values['late'] is True
+    bad = c.load(['a', 'b'], [0.1, 0.2], [[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0], [0.0, 0.0]], [], start=0.0, now=1.0)
+    assert bad.level == 'ERROR' and 'beyond' in bad.message and bad.values['late'] is False, bad.message
+
+
 def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
     c = core(path=0.3)
     # Planned to start 40 ms ago from where the arm holds, at 1 rad/s: a 20 ms lead-in would need
