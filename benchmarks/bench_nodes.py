@@ -76,11 +76,13 @@ class Watcher:
 
 def _stacks(n, rate, log_dir, phased=True):
     # The loop threads under SCHED_FIFO as config/controller.yaml and config/sim.yaml set them (where allowed),
-    # each at its own phase of the period as the README advises for several arms (phased=False: free running).
+    # the controller's executor thread just below its loop and each loop at its own phase of the period, as the
+    # README advises for several arms (phased=False: free running).
     stacks = []
     for i in range(n):
         cp, sp = ((i / n, (i + 0.5) / n) if phased else (-1.0, -1.0))
-        rate_args = ('-p', f'update_rate:={rate}', '-p', 'thread_priority:=50', '-p', f'loop_phase:={cp}')
+        rate_args = ('-p', f'update_rate:={rate}', '-p', 'thread_priority:=50', '-p', 'executor_priority:=40',
+                     '-p', f'loop_phase:={cp}')
         sim_args = ('-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}', '-p', 'thread_priority:=49',
                     '-p', f'loop_phase:={sp}')
         stacks.append(Stack(f'/bench{i}', log_dir, sim_args=sim_args, controller_args=rate_args))

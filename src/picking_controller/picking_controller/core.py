@@ -395,19 +395,21 @@ class ControllerCore:
                         f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
                         'point a later time_from_start to move there smoothly')
                     break
+            checking = False
             try:
                 traj = from_points(rel[keep], pos[keep], None if vel is None else vel[keep],
                                    None if acc is None else acc[keep], start=ref)
+                checking = True
                 self._check_spline(traj)
                 break
             except ValueError as exc:
                 traj = None
                 if keep.all():
                     # Not late. Planned from another reference (the sender's view of a plan this
-                    # controller did not run, say), it may only be the lead-in that breaks the limit:
+                    # controller did not run, say), it may only be the lead-in that breaks a limit:
                     # stale, its sender may plan it again; else the trajectory itself is at fault.
                     error = exc
-                    if self._starts_elsewhere(now + rel[0], pos[0], None if vel is None else vel[0]):
+                    if checking and self._starts_elsewhere(now + rel[0], pos[0], None if vel is None else vel[0]):
                         error = LateTrajectory(f'{exc} (its first point is not where the current reference '
                                                'will be: planned from another reference?)')
                     break

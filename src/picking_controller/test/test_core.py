@@ -221,6 +221,9 @@ def test_a_trajectory_planned_from_another_reference_is_refused_as_stale_and_a_b
     assert stale.values['late'] is True
     bad = c.load(['a', 'b'], [0.1, 0.2], [[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0], [0.0, 0.0]], [], start=0.0, now=1.0)
     assert bad.level == 'ERROR' and 'beyond' in bad.message and bad.values['late'] is False, bad.message
+    # Malformed, away from the reference as well: at fault, not stale.
+    twice = c.load(['a', 'b'], [0.5, 0.5], [[0.5, 0.0], [0.6, 0.0]], [], [], start=0.0, now=1.0)
+    assert twice.level == 'ERROR' and 'increase strictly' in twice.message and twice.values['late'] is False
 
 
 def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
