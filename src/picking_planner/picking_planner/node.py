@@ -73,9 +73,9 @@ ZERO_KEY = '0.000000000'
 SENT_KEPT = 16       # plans remembered to tell whether the controller's reference follows them
 GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
 REPEAT_WINDOW = 30.0  # s after a goal in which the same goal again is a resend, not a new goal
-#: Times a goal is planned again when its plan reached the controller too late to run (the
-#: controller's "late" rejection: a stall in transport or in a process on a loaded machine),
-#: each time starting twice as far ahead.
+#: Times a goal is planned again when the controller refused its plan as late (the plan reached it
+#: too late to run, after a stall in transport or in a process on a loaded machine; or it was
+#: planned from a reference the controller no longer follows), each time starting twice as far ahead.
 LATE_REPLANS = 2
 
 
@@ -407,8 +407,9 @@ class PlannerNode(Node):
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
     def _on_controller_status(self, msg):
-        """Plan the newest goal again when the controller refused its plan only for coming too
-        late (up to LATE_REPLANS times; then the goal is answered as not run)."""
+        """Plan the newest goal again, from where the arm is now, when the controller refused its
+        plan as late (too late, or stale: see LATE_REPLANS), up to LATE_REPLANS times; then the
+        goal is answered as not run."""
         if msg.level != ERROR or self._newest_plan is None:
             return
         values = status_values(msg)

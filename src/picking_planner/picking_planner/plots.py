@@ -18,6 +18,15 @@ def _pyplot():
     return plt
 
 
+def legend_below(fig, ax, ncol=4):
+    """``ax``'s legend below the figure's plots, not over their curves (seven joint names fill
+    an axis' width), then the layout leaving it room (0.22 in a row of names)."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc='lower center', fontsize='small', ncol=min(len(labels), ncol), frameon=False)
+    rows = -(-len(labels) // ncol)
+    fig.tight_layout(rect=(0.0, 0.22 * rows / fig.get_figheight(), 1.0, 1.0))
+
+
 def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=()):
     """Position, velocity and acceleration over time, one line per joint (Figs. 5, 9-11, 14).
 
@@ -48,12 +57,10 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
         ax.grid(True, alpha=0.3)
     axes[0].set_title(title)
     axes[-1].set_xlabel('time [s]')
-    # Below the plots, not over the curves (seven joint names fill an axis' width); none for one joint.
-    rows = -(-n // 4) if n > 1 else 0
-    if rows:
-        fig.legend(*axes[0].get_legend_handles_labels(), loc='lower center', fontsize='small', ncol=min(n, 4),
-                   frameon=False)
-    fig.tight_layout(rect=(0.0, 0.22 * rows / fig.get_figheight(), 1.0, 1.0))     # 0.22 in a legend row
+    if n > 1:
+        legend_below(fig, axes[0])
+    else:
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)

@@ -216,7 +216,7 @@ def _check_mcap(path):
 
 
 def _plot_error(path, t, err, names):
-    from ..plots import _pyplot
+    from ..plots import _pyplot, legend_below
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.6))
     for j, n in enumerate(names):
@@ -226,9 +226,7 @@ def _plot_error(path, t, err, names):
     ax.set_ylabel('measured − planned [° (gripper: mm)]')
     ax.set_title('Tracking error over the pick cycle')
     ax.grid(True, alpha=0.3)
-    # Below the plot, not over the curves.
-    fig.legend(*ax.get_legend_handles_labels(), loc='lower center', fontsize='small', ncol=4, frameon=False)
-    fig.tight_layout(rect=(0.0, 0.22 * -(-len(names) // 4) / fig.get_figheight(), 1.0, 1.0))   # 0.22 in a row
+    legend_below(fig, ax)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
