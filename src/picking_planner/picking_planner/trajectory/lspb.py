@@ -243,7 +243,7 @@ def _via_timing(points, td, a):
     """Craig's blend times (m + 1, n) and line velocities (m, n) for m >= 2 segments."""
     m = points.shape[0] - 1
     n = points.shape[1]
-    dq = np.diff(points, axis=0)                                    # (m, n)
+    dq = points[1:] - points[:-1]                                   # (m, n)
     tb = np.zeros((m + 1, n))
     vel = dq / td[:, None]
     for end, k in (('first', 0), ('last', m - 1)):
@@ -257,7 +257,7 @@ def _via_timing(points, td, a):
         t_end = td[k] - np.sqrt(np.maximum(disc, 0.0))
         tb[0 if k == 0 else m] = t_end
         vel[k] = dq[k] / (td[k] - 0.5 * t_end)
-    tb[1:m] = np.abs(np.diff(vel, axis=0)) / a
+    tb[1:m] = np.abs(vel[1:] - vel[:-1]) / a
     linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
     linear[0] -= 0.5 * tb[0]
     linear[-1] -= 0.5 * tb[-1]
