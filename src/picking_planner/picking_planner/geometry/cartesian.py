@@ -8,6 +8,8 @@ quaternion slerp between key orientations at chosen progress values.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -47,15 +49,20 @@ def progress_profile(duration, profile='quintic', accel=None, limits=None):
     if profile == 'optimal':
         shape = optimal_progress(JERK_BOUND if limits is None else limits)
         return shape.stretched(duration / shape.duration)
-    if profile == 'cubic':
-        return trajectory.cubic(0.0, 1.0, duration)
-    if profile == 'quintic':
-        return trajectory.quintic(0.0, 1.0, duration)
+    if profile in ('cubic', 'quintic'):
+        return _unit_profile(profile).stretched(duration)
     if profile == 'lspb':
         if accel is None:
             accel = 1.5 * 4.0 / duration**2
         return trajectory.lspb(0.0, 1.0, duration, accel)
     raise ValueError(f'unknown profile {profile!r}; choose one of {", ".join(PROFILES)}')
+
+
+@functools.cache
+def _unit_profile(name):
+    """The cubic or quintic progress over 1 s, built once: any duration is it stretched (every
+    Cartesian path times one, and stretching costs a fraction of building)."""
+    return getattr(trajectory, name)(0.0, 1.0, 1.0)
 
 
 def _as_rotations(orientations):
