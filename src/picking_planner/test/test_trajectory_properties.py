@@ -126,19 +126,23 @@ def test_quintic_via_passes_every_point_with_continuous_velocity_and_acceleratio
             assert np.abs(a - b).max() <= 1e-4 * scale * (1 + 1 / durations.min() ** 3)
 
 
-@given(via_paths())
+@given(via_paths(), st.booleans(), st.booleans())
 @settings(deadline=None)
-def test_quintic_via_at_rest_takes_the_clamped_cubic_splines_velocities_and_accelerations(path):
+def test_quintic_via_takes_the_cubic_splines_velocities_and_accelerations(path, free_start, free_end):
     """The knot velocities and accelerations come from our own tridiagonal solve: scipy's
-    clamped CubicSpline through the same points gives the same (the ends' accelerations are 0)."""
+    CubicSpline through the same points, with the same ends (at rest: clamped; free:
+    not-a-knot), gives the same (an end at rest has acceleration 0)."""
     from scipy.interpolate import CubicSpline
     points, durations = path
     times = np.concatenate(([0.0], np.cumsum(durations)))
+    free = tuple(f and len(durations) > 1 for f in (free_start, free_end))   # as quintic_via takes them
     rest = (1, np.zeros(points.shape[1]))
-    spline = CubicSpline(times, points, bc_type=(rest, rest), axis=0)
-    _, qd, qdd = trajectory.quintic_via(points, durations).sample(times)
+    spline = CubicSpline(times, points, bc_type=tuple('not-a-knot' if f else rest for f in free), axis=0)
+    _, qd, qdd = trajectory.quintic_via(points, durations, free_ends=(free_start, free_end)).sample(times)
     vel, acc = spline(times, 1), spline(times, 2)
-    acc[[0, -1]] = 0.0
+    for end, f in zip((0, -1), free):
+        if not f:
+            acc[end] = 0.0
     for ours, scipys in ((qd, vel), (qdd, acc)):
         assert ours == pytest.approx(scipys, rel=1e-6, abs=1e-9 * (1 + np.abs(scipys).max()))
 

@@ -9,7 +9,6 @@ acceleration.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 from scipy.linalg import lapack
 
 from ._checks import as_durations, as_points
@@ -58,13 +57,7 @@ def quintic_via(points, durations, velocities=None, accelerations=None, free_end
     times = np.concatenate(([0.0], np.cumsum(td)))
     if velocities is None:
         free = tuple(bool(f) and m > 1 for f in free_ends)     # not-a-knot needs 3 points or more
-        if any(free):
-            rest = (1, np.zeros(points.shape[1]))
-            spline = CubicSpline(times, points, bc_type=tuple('not-a-knot' if f else rest for f in free), axis=0)
-            vel = spline(times, 1)
-            acc = spline(times, 2)
-        else:
-            vel, acc = _clamped_spline(td, points)
+        vel, acc = _cubic_spline(td, points, free)
         for end, f in zip((0, -1), free):
             if not f:
                 acc[end] = 0.0
@@ -78,30 +71,49 @@ def quintic_via(points, durations, velocities=None, accelerations=None, free_end
     return PiecewisePolynomial(times, c.transpose(0, 2, 1))
 
 
-def _clamped_spline(h, points):
-    """Velocities and accelerations at the knots of the C2 cubic spline through ``points``
-    (m + 1, n) at intervals ``h`` (m,), at rest at both ends: the same values as scipy's
-    ``CubicSpline`` with clamped ends, from one tridiagonal solve (LAPACK's gtsv) and no
-    spline object: 5x quicker for a line's 50 samples (every Cartesian path from rest to rest
-    takes it).
 
-    Each interior knot's velocity ``v_i`` meets continuity of acceleration there::
+def _cubic_spline(h, points, free=(False, False)):
+    """Velocities and accelerations at the knots of the C2 cubic spline through ``points``
+    (m + 1, n) at intervals ``h`` (m,): the values of scipy's ``CubicSpline`` (a property test
+    compares them), from one tridiagonal solve (LAPACK's gtsv) and no spline object, 5x
+    quicker for a line's 50 samples (every Cartesian path takes it).
+
+    An end is at rest (velocity 0), or ``free``: not-a-knot, the first (last) two cubics one
+    polynomial, which needs m >= 2 (m >= 3 for both ends: three points free at both ends
+    lie on one parabola, taken as such). Each interior knot's velocity ``v_i`` meets
+    continuity of acceleration there::
 
         h_i v_(i-1) + 2 (h_(i-1) + h_i) v_i + h_(i-1) v_(i+1) = 3 (h_i d_(i-1) + h_(i-1) d_i)
 
-    with ``d_i`` the slope of interval ``i``; the cubic on interval ``i`` then has
-    acceleration ``2 (3 d_i - 2 v_i - v_(i+1)) / h_i`` at its start.
+    with ``d_i`` the slope of interval ``i``; a free start's row is the not-a-knot condition
+    with ``v_2`` eliminated by the row of knot 1 (a free end's mirrors it). The cubic on
+    interval ``i`` then has acceleration ``2 (3 d_i - 2 v_i - v_(i+1)) / h_i`` at its start.
     """
     slope = (points[1:] - points[:-1]) / h[:, None]
     n = points.shape[0]
+    if free[0] and free[1] and n == 3:
+        # One parabola through the three points: its slope at the middle knot is the
+        # interval-weighted mean of the slopes, its acceleration constant.
+        curvature = 2.0 * (slope[1] - slope[0]) / (h[0] + h[1])
+        vel = np.stack([slope[0] - 0.5 * curvature * h[0], slope[0] + 0.5 * curvature * h[0],
+                        slope[1] + 0.5 * curvature * h[1]])
+        return vel, np.repeat(curvature[None], 3, axis=0)
     diag, upper, lower = np.ones(n), np.zeros(n - 1), np.zeros(n - 1)
     diag[1:-1] = 2.0 * (h[:-1] + h[1:])
     upper[1:] = h[:-1]
     lower[:-1] = h[1:]
-    rhs = np.zeros_like(points)                       # the end rows: v = 0
+    rhs = np.zeros_like(points)                       # the rows of an end at rest: v = 0
     rhs[1:-1] = 3.0 * (h[1:, None] * slope[:-1] + h[:-1, None] * slope[1:])
+    if free[0]:
+        span = h[0] + h[1]
+        diag[0], upper[0] = h[1], span
+        rhs[0] = ((3.0 * h[0] + 2.0 * h[1]) * h[1] * slope[0] + h[0] ** 2 * slope[1]) / span
+    if free[1]:
+        span = h[-1] + h[-2]
+        diag[-1], lower[-1] = h[-2], span
+        rhs[-1] = ((3.0 * h[-1] + 2.0 * h[-2]) * h[-2] * slope[-1] + h[-1] ** 2 * slope[-2]) / span
     *_, vel, info = lapack.dgtsv(lower, diag, upper, rhs, True, True, True, True)
-    if info != 0:                                     # not for positive intervals (diagonally dominant)
+    if info != 0:
         raise ValueError(f'the spline through the via points could not be solved (LAPACK gtsv info {info})')
     acc = np.empty_like(points)
     acc[:-1] = 2.0 * (3.0 * slope - 2.0 * vel[:-1] - vel[1:]) / h[:, None]
