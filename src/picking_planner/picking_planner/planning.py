@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from . import geometry, trajectory
 from .kinematics import Unreachable, cartesian_to_joint
@@ -447,7 +446,7 @@ class Planner:
         (``ends``, ``rest``: see :meth:`_timed_cartesian`)."""
         self.arm.check_reachable(T_goal, seed=q0)
         line = geometry.Line(T_start[:3, 3], T_goal[:3, 3])
-        rots = Rotation.from_matrix(np.stack([T_start[:3, :3], T_goal[:3, :3]]))
+        rots = np.stack([T_start[:3, :3], T_goal[:3, :3]])
         if self.arm.dof < 6:
             rots = None
         return self._timed_cartesian(line, q0, rots, ends=ends, rest=rest)
@@ -461,7 +460,7 @@ class Planner:
         rots = None
         keys = None
         if self.arm.dof >= 6:
-            rots = Rotation.from_matrix(np.stack([T1[:3, :3], T2[:3, :3], T3[:3, :3]]))
+            rots = np.stack([T1[:3, :3], T2[:3, :3], T3[:3, :3]])
             # The key of p2 is its arc-length fraction along the arc.
             p = curve.points(2001)
             keys = [0.0, float(np.argmin(np.linalg.norm(p - T2[:3, 3], axis=1)) / 2000), 1.0]

@@ -185,6 +185,15 @@ def test_line_and_timed_path(a, b, T, profile):
     refused_or_finite(geometry.progress_profile, T, profile)
 
 
+@given(arrays(3), arrays(1))
+def test_timed_path_orientations(orientations, keys):
+    line = geometry.Line((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))
+    path = refused_or_finite(geometry.CartesianPath.timed, line, 1.0, orientations=orientations,
+                             keys=None if keys.size == 0 else keys)
+    if path is not None:
+        refused_or_finite(path.poses, np.linspace(0.0, 1.0, 5))
+
+
 # -- kinematics ------------------------------------------------------------------------
 @given(arrays(3))
 def test_fk_ik_and_reachability(arm, T):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from hypothesis import assume, given, strategies as st
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 from picking_planner import geometry
 
@@ -103,6 +103,36 @@ def test_cartesian_path_refuses_bad_profile_and_quaternions():
         geometry.CartesianPath.timed(line, 1.0, 'septic')
     with pytest.raises(ValueError, match='non-zero'):
         geometry.CartesianPath.timed(line, 1.0, orientations=[[0, 0, 0, 0]])
+
+
+@given(st.integers(2, 5), st.integers(0, 2**32 - 1), st.sampled_from(['rotation', 'quaternions', 'matrices']))
+def test_cartesian_path_orientations_are_scipys_slerp_between_its_keys(k, seed, given_as):
+    rng = np.random.default_rng(seed)
+    rots = Rotation.random(k, random_state=seed)
+    keys = np.concatenate(([0.0], np.sort(rng.uniform(0.05, 0.95, k - 2)), [1.0]))
+    assume(np.diff(keys).min() > 1e-3)
+    orientations = {'rotation': rots, 'quaternions': rots.as_quat() * rng.uniform(0.5, 2.0),
+                    'matrices': rots.as_matrix()}[given_as]
+    path = geometry.CartesianPath(geometry.Line((0, 0, 0), (1, 0, 0)), geometry.progress_profile(1.0, 'cubic'),
+                                  orientations, keys)
+    t = np.concatenate((np.linspace(0.0, 1.0, 97), keys))      # the keys themselves too
+    u = path.profile.sample(t)[0][:, 0]
+    expected = Slerp(keys, rots)(np.clip(u, 0.0, 1.0)).as_matrix()
+    assert np.abs(path.poses(t)[:, :3, :3] - expected).max() < 1e-12
+    assert np.abs(path.orientations(t).as_matrix() - expected).max() < 1e-12
+
+
+def test_cartesian_path_refuses_orientation_matrices_that_are_not_rotations():
+    line = geometry.Line((0, 0, 0), (1, 0, 0))
+    mirror = np.diag([1.0, 1.0, -1.0])
+    for bad in ([np.eye(3), mirror], [np.eye(3), 1.01 * np.eye(3)]):
+        with pytest.raises(ValueError, match='proper rotation'):
+            geometry.CartesianPath.timed(line, 1.0, orientations=np.array(bad))
+    with pytest.raises(ValueError, match='finite'):
+        geometry.CartesianPath.timed(line, 1.0, orientations=np.array([np.eye(3), np.full((3, 3), np.nan)]))
+    fixed = geometry.CartesianPath.timed(line, 1.0, orientations=[Rotation.from_euler('x', 0.3).as_matrix()])
+    assert fixed.poses(np.array([0.0, 0.7]))[:, :3, :3] == pytest.approx(
+        np.repeat(Rotation.from_euler('x', 0.3).as_matrix()[None], 2, axis=0), abs=1e-15)
 
 
 def test_optimal_progress_is_bang_bang_jerk_and_faster_than_a_quintic_for_the_same_peak_jerk():
