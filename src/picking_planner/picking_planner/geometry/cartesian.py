@@ -91,10 +91,11 @@ def _key_matrices(orientations):
         if np.abs(arr @ np.swapaxes(arr, 1, 2) - np.eye(3)).max() > 1e-6 or (np.linalg.det(arr) <= 0).any():
             raise ValueError('orientation matrices must be proper rotation matrices (orthonormal, determinant +1)')
         return arr
-    norms = np.linalg.norm(arr, axis=1)
-    if np.any(norms < 1e-9):
+    scale = np.abs(arr).max(axis=1, keepdims=True)           # norms of huge quaternions overflow
+    scaled = arr / np.maximum(scale, 1e-300)
+    if np.any(scale[:, 0] * np.linalg.norm(scaled, axis=1) < 1e-9):
         raise ValueError('orientation quaternions must be finite and non-zero')
-    return Rotation.from_quat(arr / norms[:, None]).as_matrix()
+    return Rotation.from_quat(scaled).as_matrix()
 
 
 class _Slerp:
