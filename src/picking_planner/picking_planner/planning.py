@@ -22,6 +22,7 @@ every joint keeps its jerk limit; cubic and LSPB moves step their acceleration
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -196,6 +197,11 @@ def feasible_start(arm, q, qd, qdd):
     return q1, qd1, qdd1
 
 
+def _read_only(a):
+    a.flags.writeable = False
+    return a
+
+
 def _full_jerk(arm):
     """The arm's jerk limits, DEFAULT_JERK_PER_ACCEL times the acceleration limit where none is given."""
     a = np.where(np.isfinite(arm.max_acceleration), arm.max_acceleration, 2.0)
@@ -213,19 +219,21 @@ class Planner:
         return Planner(self.arm, replace(self.settings, **changes))
 
     # -- limits and durations -----------------------------------------------------
-    @property
+    # The scaled limits, computed once: the settings are frozen and the arm's limits read-only
+    # (a pick cycle reads them about 30 times).
+    @functools.cached_property
     def _vmax(self):
         v = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
-        return v * self.settings.speed_scale * PLAN_MARGIN
+        return _read_only(v * self.settings.speed_scale * PLAN_MARGIN)
 
-    @property
+    @functools.cached_property
     def _amax(self):
         a = np.where(np.isfinite(self.arm.max_acceleration), self.arm.max_acceleration, 2.0)
-        return a * (self.settings.speed_scale ** 2) * PLAN_MARGIN
+        return _read_only(a * (self.settings.speed_scale ** 2) * PLAN_MARGIN)
 
-    @property
+    @functools.cached_property
     def _jmax(self):
-        return _full_jerk(self.arm) * (self.settings.speed_scale ** 3) * PLAN_MARGIN
+        return _read_only(_full_jerk(self.arm) * (self.settings.speed_scale ** 3) * PLAN_MARGIN)
 
     def shortest_duration(self, q0, qf, method):
         """The shortest time in which every joint makes its move within the scaled limits, s."""
