@@ -12,6 +12,8 @@ merged into one piecewise polynomial with the union of the boundaries.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ._checks import as_duration, as_durations, as_joint_vector, as_points
@@ -196,29 +198,37 @@ def via_lspb(points, durations, accel):
     bounds = np.maximum.accumulate(np.clip(bounds, 0.0, times[m]), axis=0)
 
     starts = bounds[:-1]                                            # (2m+1, n)
-    # Phase p: 0 is the start blend, odd p = 2k+1 is line k, even p = 2k >= 2 is
-    # the blend at via point k, which starts on line k-1. Line k passes via
-    # point k+1 at its time (the last line: via point m-1) with velocity vel[k];
-    # Craig's end-segment velocities make the first and last lines meet the
-    # end blends.
-    p = np.arange(2 * m + 1)
-    line = np.clip(np.where(p % 2 == 1, (p - 1) // 2, p // 2 - 1), 0, m - 1)
-    anchor = np.where(line < m - 1, line + 1, m - 1)
-    line = np.broadcast_to(line[:, None], (2 * m + 1, n))
-    anchor = np.broadcast_to(anchor[:, None], (2 * m + 1, n))
-    cols = np.arange(n)[None, :]
-    q_start = points[anchor, cols] + vel[line, cols] * (starts - times[anchor])
-    v_start = vel[line, cols].copy()
+    line, anchor = _phase_lines(m)
+    q_start = points[anchor] + vel[line] * (starts - times[anchor, None])
+    v_start = vel[line]
     q_start[0], v_start[0] = points[0], 0.0
-    acc = np.zeros((2 * m + 1, n))
+    acc = np.empty((2 * m + 1, n))
     acc[0] = np.sign(vel[0]) * a
-    acc[2:2 * m:2] = np.sign(np.diff(vel, axis=0)) * a
+    acc[1:2 * m:2] = 0.0
+    acc[2:2 * m:2] = np.sign(vel[1:] - vel[:-1]) * a
     acc[2 * m] = -np.sign(vel[-1]) * a
 
     breaks, coeffs = _from_phases(bounds, q_start, v_start, acc)
     out = ViaLspb(breaks, coeffs)
     out.via_times, out.blend_times, out.segment_velocities = times, tb, vel
     return out
+
+
+@functools.cache
+def _phase_lines(m):
+    """For the 2m + 1 phases of m segments: the line each phase starts on, and the via point
+    that line passes at its time (read-only index arrays).
+
+    Phase p: 0 is the start blend, odd p = 2k+1 is line k, even p = 2k >= 2 is the blend
+    at via point k, which starts on line k-1. Line k passes via point k+1 at its time (the
+    last line: via point m-1) with velocity vel[k]; Craig's end-segment velocities make the
+    first and last lines meet the end blends.
+    """
+    p = np.arange(2 * m + 1)
+    line = np.clip(np.where(p % 2 == 1, (p - 1) // 2, p // 2 - 1), 0, m - 1)
+    anchor = np.where(line < m - 1, line + 1, m - 1)
+    line.flags.writeable = anchor.flags.writeable = False
+    return line, anchor
 
 
 def via_lspb_timing(points, durations, accel):

@@ -368,11 +368,14 @@ def taylor_shift(coeffs, dt):
     if dt.ndim == 1:
         dt = dt[:, None]
     # Repeated synthetic division (Horner's scheme): 15 fused steps instead of the
-    # binomial sum's 21 terms of powers and products.
+    # binomial sum's 21 terms of powers and products for a quintic, 3 for the parabolas of
+    # LSPB phases (zero leading coefficients stay zero and are skipped).
     # (Coefficient-major, so that every step runs over contiguous memory.)
     c = np.array(np.moveaxis(np.asarray(coeffs, dtype=float), 1, 0), order='C')
     step = np.empty(np.broadcast_shapes(c[0].shape, dt.shape))
     degree = c.shape[0] - 1
+    while degree > 0 and not c[degree].any():
+        degree -= 1
     for i in range(degree):
         for j in range(degree - 1, i - 1, -1):
             np.multiply(c[j + 1], dt, out=step)
