@@ -23,7 +23,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from harness import fmt_time  # noqa: E402
-from rosstack import Client, Stack, ensure_rclpy  # noqa: E402
+from rosstack import Client, Stack, ensure_rclpy, stop_all  # noqa: E402
 
 from picking_planner.ros_common import SWITCH_INTERVAL, LatestMessage  # noqa: E402
 
@@ -169,8 +169,7 @@ def run_stacks(n, rate, seconds, goal_every=2.0, ready_timeout=READY_TIMEOUT):
         finally:
             for w in watchers:
                 w.close()
-            for s in stacks:
-                s.stop()
+            stop_all([p for s in stacks for p in s.processes])     # every node at once
     return out
 
 

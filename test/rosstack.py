@@ -69,15 +69,21 @@ class Process:
 
     def stop(self, sig=signal.SIGINT, timeout=10.0):
         """Signal by pid and wait; returns the exit code (None if it had to be killed)."""
-        killed = False
+        return stop_all([self], sig, timeout)[0]
+
+    def _signal(self, sig):
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-                killed = True
+
+    def _reap(self, deadline):
+        """Wait until ``deadline`` (monotonic s), then kill; the exit code, None if killed."""
+        killed = False
+        try:
+            self.proc.wait(max(deadline - time.monotonic(), 0.0))
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            killed = True
         self.log.close()
         if self.stopped_at is None:
             self.stopped_at = time.monotonic()
@@ -87,6 +93,17 @@ class Process:
         if not self.log.closed:
             self.log.flush()
         return Path(self.log.name).read_text()
+
+
+def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
+    """Signal every process by pid at once, as Ctrl-C in a terminal does, then wait for them
+    all within one ``timeout`` (an overloaded machine stops N stacks in seconds, not N times
+    3 x 10 s); a process still running then is killed. Returns the exit codes in order
+    (None for a killed one)."""
+    for p in processes:
+        p._signal(sig)
+    deadline = time.monotonic() + timeout
+    return [p._reap(deadline) for p in processes]
 
 
 class Stack:
@@ -125,8 +142,14 @@ class Stack:
     def restart_planner(self):
         self.planner = self._start('picking-planner')
 
+    @property
+    def processes(self):
+        return [self.planner, self.controller, self.sim]
+
     def stop(self):
-        return {p.name: p.stop() for p in (self.planner, self.controller, self.sim)}
+        """Stop the three nodes at once; their exit codes by name."""
+        procs = self.processes
+        return {p.name: code for p, code in zip(procs, stop_all(procs))}
 
 
 class Client(Node):
