@@ -294,7 +294,8 @@ class Planner:
         except ValueError:
             pass
         # Else the shortest of a few quintic stops that keeps the limits (a start already
-        # decelerating hard needs more time than its speed alone says); none does: the first.
+        # decelerating hard needs more time than its speed alone says); none does: the first,
+        # unless it leaves a position limit (no plan from this start could keep it).
         first = None
         for least in (0.05, 0.1, 0.2, 0.4):
             stop = trajectory.brake(q, qd, qdd, self.arm.max_acceleration, min_duration=least)
@@ -306,7 +307,22 @@ class Planner:
                 break
         else:
             stop = first
+            self._check_stops_within_position_limits(q, qd, stop)
         return stop, stop.end_state()[0]
+
+    def _check_stops_within_position_limits(self, q, qd, stop):
+        """Unreachable, naming the joint, when the stop from the start passes a position limit."""
+        p = stop.sample(np.linspace(0.0, stop.duration, 101))[0]
+        arm = self.arm
+        beyond = (p < arm.lower - 1e-9) | (p > arm.upper + 1e-9)
+        if beyond.any():
+            j = int(np.flatnonzero(beyond.any(axis=0))[0])
+            upper = bool((p[:, j] > arm.upper[j] + 1e-9).any())
+            reach = p[:, j].max() if upper else p[:, j].min()
+            limit = arm.upper[j] if upper else arm.lower[j]
+            raise Unreachable(f'{arm.joint_names[j]} moves at {qd[j]:.3g} rad/s from {q[j]:.4g} rad toward its '
+                              f'limit {limit:.4g} rad and cannot stop before it (a stop within the acceleration '
+                              f'limit reaches {reach:.4g} rad): no plan from this motion keeps the limit')
 
     def _join(self, parts, method, cartesian=()):
         """Concatenate (label, method, traj) parts into a Plan with its segment table."""

@@ -76,6 +76,21 @@ def test_a_move_that_would_overshoot_a_limit_from_the_motion_brakes_first(arm, p
     _within_limits(arm, plan)
 
 
+def test_a_start_that_cannot_stop_before_a_position_limit_is_refused_naming_the_joint(arm, planner):
+    # The elbow 0.1 rad from its upper limit, moving toward it at 96 % of its speed limit: any stop
+    # within the acceleration limit passes the limit, so every plan from here would.
+    q0 = HOME.copy()
+    q0[2] = arm.upper[2] - 0.1
+    qd0 = np.zeros(6)
+    qd0[2] = 0.96 * arm.max_velocity[2]
+    goal = pose_matrix([0.6, 0.1, 0.4], DOWN)
+    for method in ('quintic', 'lspb', 'line'):
+        with pytest.raises(Unreachable, match=r'elbow_joint moves at 2.4 rad/s .* cannot stop before it'):
+            planner.plan_pose((q0, qd0, Z), goal, method)
+    # Moving away from the limit at the same speed, the plan brakes first and keeps every limit.
+    _within_limits(arm, planner.plan_pose((q0, -qd0, Z), goal, 'quintic'))
+
+
 @pytest.mark.parametrize('method', PATH_METHODS)
 def test_path_goal_ends_at_the_last_pose(arm, planner, method):
     poses = [pose_matrix([0.55, -0.1, 0.5], DOWN), pose_matrix([0.5, 0.05, 0.45], DOWN)]
