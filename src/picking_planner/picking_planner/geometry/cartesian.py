@@ -200,21 +200,21 @@ class CartesianPath:
 
     def orientations(self, t):
         """Tool orientations at times ``t`` (a scipy Rotation of N), or None if not set."""
-        matrices = self._matrices_at(self.profile.sample(t)[0][:, 0])
+        matrices = self._matrices_at(np.clip(self.profile.sample(t)[0][:, 0], 0.0, 1.0))
         return None if matrices is None else Rotation.from_matrix(matrices)
 
     def _matrices_at(self, u):
-        """Rotation matrices (N, 3, 3) at progress ``u``, or None if no orientation is set."""
+        """Rotation matrices (N, 3, 3) at progress ``u`` (in [0, 1]), or None if no orientation is set."""
         if self._slerp is not None:
-            return self._slerp(np.clip(u, 0.0, 1.0))
+            return self._slerp(u)
         if self._fixed is not None:
             return np.broadcast_to(self._fixed, (u.size, 3, 3))
         return None
 
     def poses(self, t):
         """4x4 tool poses at times ``t``, shape (N, 4, 4) (identity rotation if none set)."""
-        u = self.profile.sample(t)[0][:, 0]          # the progress, sampled once for both
-        p = self.curve.at(np.clip(u, 0.0, 1.0) * self.curve.length)[0]
+        u = np.clip(self.profile.sample(t)[0][:, 0], 0.0, 1.0)      # the progress, once for both
+        p = self.curve.at(u * self.curve.length)[0]
         out = np.zeros((p.shape[0], 4, 4))
         out[:, :3, 3] = p
         out[:, 3, 3] = 1.0
