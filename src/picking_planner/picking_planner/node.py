@@ -16,6 +16,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import OrderedDict, deque
+from typing import NamedTuple
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -37,7 +38,7 @@ from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
 from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
                          stamp_key, status, status_values)
-from .sent_plans import carried_points, plan_active
+from .sent_plans import SentPlan, carried_points, carry_start, plan_active
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -70,13 +71,30 @@ def msg_pose(pose):
 
 
 ZERO_KEY = '0.000000000'
-SENT_KEPT = 16       # plans remembered to tell whether the controller's reference follows them
+#: Plans remembered to tell whether the controller's reference follows them: those that may still
+#: run (a goal flood sends one every few ms, each to start start_delay or more ahead), at most this many.
+SENT_KEPT = 2000
 GOALS_KEPT = 1000    # goals remembered (with their answers) to know one sent again
 REPEAT_WINDOW = 30.0  # s after a goal in which the same goal again is a resend, not a new goal
 #: Times a goal is planned again when the controller refused its plan as late (the plan reached it
 #: too late to run, after a stall in transport or in a process on a loaded machine; or it was
 #: planned from a reference the controller no longer follows), each time starting twice as far ahead.
 LATE_REPLANS = 2
+
+
+class Start(NamedTuple):
+    """Where a plan starts (see :meth:`PlannerNode.start_state`)."""
+
+    state: tuple                  # (q, qd, qdd)
+    source: str                   # 'reference' (the controller's) or 'measured'
+    time: float                   # on the controller's clock, s
+    carry_from: float | None = None
+    carries_on: bool = False      # from a sent plan the reference follows, at ``time``
+
+    def words(self):
+        if self.carries_on:
+            return 'the plan running then'
+        return "the controller's reference, extrapolated" if self.source == 'reference' else 'the measured state'
 
 
 class PlannerNode(Node):
@@ -107,7 +125,7 @@ class PlannerNode(Node):
         self.lock = threading.Lock()
         self.pending = []             # goals that came before the first joint_states
         self._planning_time = {}      # kind of goal -> s its last planning took
-        self._sent = deque(maxlen=SENT_KEPT)   # (trajectory, start time, joint names) of the last plans sent
+        self._sent = deque(maxlen=SENT_KEPT)   # SentPlan: the plans sent that may still run
         # The newest plan sent: its trajectory's stamp key, the goal (kind, header, plan_fn), how many times
         # it was planned again, its entry in _sent. Planned again if the controller says it came too late.
         self._newest_plan = None
@@ -204,7 +222,7 @@ class PlannerNode(Node):
         return q, qd, qdd, stamp
 
     def start_state(self, delay, reference, measured):
-        """Where the plan starts: ``(q, qd, qdd), source, start time, carry from``.
+        """Where the plan starts: a :class:`Start`.
 
         The plan starts ``delay`` s from now and the trajectory is stamped to
         start then, so planning and delivery time never make the arm jump and
@@ -219,27 +237,35 @@ class PlannerNode(Node):
         client's trajectory, a catch-up lead-in, a stalled controller), held
         within the limits. Without a reference, the measured state, at rest.
         ``reference`` and ``measured`` (from :meth:`measured`) are snapshots
-        taken when the goal came. ``carry from``: when the plan carries on from
+        taken when the goal came. ``carry_from``: when the plan carries on from
         plans that start after the reference's stamp (the controller may not
-        run them: see :func:`carried_points`), the first one's start; else None.
+        run them: see :func:`carried_points`), where to carry them from
+        (:func:`carry_start`); else None.
         """
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
             q, qd, qdd, stamp = reference
             then = plan_active(self._sent, stamp) if stamp > 0 else None
             n = q.size
-            if then is not None and np.abs(then[0].state_at(stamp - then[1])[0][:n] - q).max() < FOLLOWING:
-                plan, t0, _ = plan_active(self._sent, t_start) or then
-                unseen = [p[1] for p in self._sent if stamp < p[1] < t_start]
-                return tuple(x[:n].copy() for x in plan.state_at(t_start - t0)), 'reference', t_start, \
-                    min(unseen, default=None)
+            if then is not None:
+                self._forget_before(then)
+                if np.abs(then.trajectory.state_at(stamp - then.start)[0][:n] - q).max() < FOLLOWING:
+                    plan = plan_active(self._sent, t_start) or then
+                    return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
+                                 'reference', t_start, carry_start(self._sent, stamp, t_start), carries_on=True)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
-            return feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd), \
-                'reference', t_start, None
+            return Start(feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd),
+                         'reference', t_start)
         if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]
-        return (q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start, None
+        return Start((q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start)
+
+    def _forget_before(self, active):
+        """Forget the sent plans that can no longer run: those sent before ``active``, the plan
+        running at the controller's newest reference (a later time runs it or a newer plan)."""
+        while self._sent[0] is not active:
+            self._sent.popleft()
 
     # -- goals ---------------------------------------------------------------------------
     def _check_frame(self, header):
@@ -364,9 +390,9 @@ class PlannerNode(Node):
                          + 1.5 * self._planning_time.get(kind, FIRST_PLANNING[kind]))
                 ref = self._reference()
                 for _ in range(4):
-                    start, source, t_start, carry_from = self.start_state(delay, ref, measured)
-                    plan = plan_fn(start, measured[1])
-                    if self.get_clock().now().nanoseconds * 1e-9 < t_start - DELIVERY:
+                    start = self.start_state(delay, ref, measured)
+                    plan = plan_fn(start.state, measured[1])
+                    if self.get_clock().now().nanoseconds * 1e-9 < start.time - DELIVERY:
                         break
                     delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
@@ -377,6 +403,7 @@ class PlannerNode(Node):
         names = list(plan.joint_names or self.names)
         period = self.planner.settings.sample_period
         own = points = plan.samples(period)
+        t_start, carry_from = start.time, start.carry_from
         stamp = t_start
         carried = None if carry_from is None else carried_points(self._sent, carry_from, t_start, period, names)
         if carried is not None:
@@ -388,19 +415,19 @@ class PlannerNode(Node):
             # Checked as the controller will check it: a plan it would reject is never sent as accepted.
             check_joint_limits(self.arm, *points, names=names)
         except Unreachable as exc:
-            self._refuse(kind, key, f'the plan breaks a limit (from a {source} start: the arm\'s motion cannot '
-                                    f'be carried on within it): {exc}')
+            self._refuse(kind, key, f'the plan breaks a limit (from {start.words()}: the arm\'s motion '
+                                    f'cannot be carried on within it): {exc}')
             return
         stamp_ns = int(round(stamp * 1e9))
         self._publish_trajectory(names, stamp_ns, points)
-        self._sent.append((plan.trajectory, t_start, names))
+        self._sent.append(SentPlan(plan.trajectory, t_start, names, start.carries_on))
         self._newest_plan = (stamp_key(stamp_ns), (kind, header, plan_fn), attempt, self._sent[-1])
         summary = plan.summary(self.planner.settings.sample_period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
         again = ' again (the last plan reached the controller too late)' if attempt else ''
         self._answer(status(
             'picking_planner', OK, f'{kind} goal accepted{again}: {plan.method}, {plan.duration:.3f} s',
-            goal=key, kind=kind, method=plan.method, duration=plan.duration, start=source,
+            goal=key, kind=kind, method=plan.method, duration=plan.duration, start=start.source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
             segments=segments, planning_ms=planning_ms, attempt=attempt + 1, **getattr(plan, 'extra', {})))
         self._publish_tool_path(own[1])

@@ -3,16 +3,51 @@ new plan must carry of them. Pure functions (no ROS), for :mod:`picking_planner.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
+class SentPlan(NamedTuple):
+    """A plan as sent: its trajectory, its start on the controller's clock, its joint names,
+    and whether it carries on from the plan sent before it (starts from that plan's state at
+    ``start``) or from elsewhere (an extrapolated reference, the measured state)."""
+
+    trajectory: object
+    start: float
+    names: list
+    carries_on: bool = True
+
+
 def plan_active(sent, t):
-    """The entry of ``sent`` (``(trajectory, start time, joint names)``, oldest first) that
-    runs at time ``t``: the newest one started by then, or None."""
+    """The entry of ``sent`` (:class:`SentPlan`, oldest first) that runs at time ``t``: the
+    newest one started by then, or None."""
     for plan in reversed(sent):
-        if plan[1] <= t:
+        if plan.start <= t:
             return plan
     return None
+
+
+def carry_start(sent, seen, t_start):
+    """Where a new plan starting at ``t_start`` must carry the sent plans from: the start of
+    the first plan the controller is not seen to run by ``seen`` (its reference's stamp),
+    or None when there is none.
+
+    The carried motion must be one motion: each plan in it starts from the state of the
+    plan before it. A plan that started elsewhere (from an extrapolated reference, which
+    the controller led into its own way) begins the carry afresh at its start; carrying
+    the motion before it too would put a jump into the points at that start.
+    """
+    first = afresh = None
+    later = np.inf                   # the earliest start among the plans sent after this one
+    for plan in reversed(sent):
+        if seen < plan.start < t_start:
+            first = plan.start if first is None else min(first, plan.start)
+            # It runs from its start unless a plan sent after it starts by then.
+            if plan.start < later and not plan.carries_on:
+                afresh = plan.start if afresh is None else max(afresh, plan.start)
+        later = min(later, plan.start)
+    return afresh if afresh is not None else first
 
 
 def carried_points(sent, t_from, t_until, period, names):
@@ -31,7 +66,7 @@ def carried_points(sent, t_from, t_until, period, names):
     times = t_from + np.arange(max(int(np.ceil((t_until - t_from) / period - 0.5)), 0)) * period
     rows = []
     for t in times:
-        traj, t0, plan_names = plan_active(sent, t)
+        traj, t0, plan_names, _ = plan_active(sent, t)
         try:
             cols = [plan_names.index(n) for n in names]
         except ValueError:

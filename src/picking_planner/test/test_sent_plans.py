@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
 from picking_planner import trajectory
-from picking_planner.sent_plans import carried_points, plan_active
+from picking_planner.sent_plans import SentPlan, carried_points, carry_start, plan_active
 
 ARM = ['a', 'b']
 
@@ -17,7 +18,7 @@ def sent_plans():
     a = trajectory.quintic([0.0, 0.0], [1.0, -1.0], 2.0)
     b = carry_on(a, 0.3, [0.5, 0.5])
     c = trajectory.stack([carry_on(b, 0.05, [0.2, 0.2]), trajectory.hold([0.09], 1.0)])
-    return [(a, 10.0, ARM), (b, 10.3, ARM), (c, 10.35, ARM + ['gripper'])]
+    return [SentPlan(a, 10.0, ARM), SentPlan(b, 10.3, ARM), SentPlan(c, 10.35, ARM + ['gripper'])]
 
 
 def test_the_plan_active_at_a_time_is_the_newest_started_by_then():
@@ -27,7 +28,7 @@ def test_the_plan_active_at_a_time_is_the_newest_started_by_then():
     assert plan_active(sent, 10.3)[1] == 10.3
     assert plan_active(sent, 12.0)[1] == 10.35
     # A plan sent later but starting earlier wins from its start on.
-    late = (sent[0][0], 10.1, ARM)
+    late = SentPlan(sent[0].trajectory, 10.1, ARM)
     assert plan_active(sent + [late], 10.4)[1] == 10.1
 
 
@@ -38,15 +39,44 @@ def test_a_new_plan_carries_the_plans_the_controller_may_not_have_run():
     assert t == pytest.approx(np.arange(12) * 0.01)
     assert t[-1] <= 0.12 - 0.005
     for k, tk in enumerate(t + 10.3):
-        traj, t0, names = plan_active(sent, tk)
+        traj, t0, names, _ = plan_active(sent, tk)
         cols = [names.index(n) for n in ARM]
         for got, want in zip((q[k], qd[k], qdd[k]), traj.state_at(tk - t0)):
             assert got == pytest.approx(want[cols], abs=1e-12)
     # B until 10.35 s, then the plan with the gripper (its arm joints).
-    assert q[4] == pytest.approx(sent[1][0].state_at(0.04)[0])
-    assert q[6] == pytest.approx(sent[2][0].state_at(0.01)[0][:2])
+    assert q[4] == pytest.approx(sent[1].trajectory.state_at(0.04)[0])
+    assert q[6] == pytest.approx(sent[2].trajectory.state_at(0.01)[0][:2])
     # Joints in the new plan's order; one a running plan lacks: nothing to carry.
     assert carried_points(sent, 10.3, 10.42, 0.01, ['b', 'a'])[1] == pytest.approx(q[:, ::-1])
     assert carried_points(sent, 10.3, 10.42, 0.01, ARM + ['gripper']) is None
     assert carried_points(sent, 10.36, 10.42, 0.01, ARM + ['gripper'])[1].shape == (6, 3)
     assert carried_points(sent, 10.3, 10.304, 0.01, ARM) is None     # less than half a period
+
+
+def test_the_carry_starts_at_the_first_unseen_plan_or_afresh_at_one_that_did_not_carry_on():
+    sent = sent_plans()
+    assert carry_start(sent, 10.2, 10.5) == 10.3          # B and C are not seen to run yet
+    assert carry_start(sent, 10.31, 10.5) == 10.35
+    assert carry_start(sent, 10.36, 10.5) is None         # C runs: nothing to carry
+    assert carry_start(sent, 10.2, 10.32) == 10.3          # C starts after the new plan
+    # D started from an extrapolated reference, 0.05 rad from where B is then: carrying B
+    # into D would jump; the carry starts afresh at D's start.
+    d = trajectory.quintic(sent[1].trajectory.state_at(0.05)[0] + 0.05, [0.2, 0.2], 1.0)
+    afresh = sent[:2] + [SentPlan(d, 10.35, ARM, carries_on=False)]
+    assert carry_start(afresh, 10.2, 10.5) == 10.35
+    steps = np.abs(np.diff(carried_points(afresh, 10.3, 10.5, 0.01, ARM)[1], axis=0)).max()
+    assert steps > 0.04
+    assert np.abs(np.diff(carried_points(afresh, 10.35, 10.5, 0.01, ARM)[1], axis=0)).max() < 0.01
+    # ... unless a plan sent after D, starting before it, runs instead of it.
+    replaced = afresh + [SentPlan(sent[1].trajectory, 10.32, ARM)]
+    assert carry_start(replaced, 10.2, 10.5) == 10.3
+
+
+@given(st.lists(st.tuples(st.integers(0, 12), st.booleans()), max_size=12), st.integers(-1, 12), st.integers(0, 13))
+def test_the_carry_start_is_the_first_unseen_start_or_the_last_running_plan_that_did_not_carry_on(plans, seen, until):
+    """Against the definition, by plan_active at every start: whatever the order plans were sent in."""
+    sent = [SentPlan(None, float(s), ARM, carries_on) for s, carries_on in plans]
+    starts = sorted({p.start for p in sent if seen < p.start < until})
+    fresh = [t for t in starts[1:] if plan_active(sent, t).start == t and not plan_active(sent, t).carries_on]
+    want = (fresh[-1] if fresh else starts[0]) if starts else None
+    assert carry_start(sent, seen, until) == want
