@@ -14,17 +14,27 @@ from pathlib import Path
 import numpy as np
 
 
-def time_calls(fns, repeats=15, warmup=2):
-    """Time each callable ``repeats`` times, interleaved; returns {name: seconds array}."""
+def time_calls(fns, repeats=15, warmup=2, seed=0):
+    """Time each callable ``repeats`` times, interleaved; returns {name: seconds array}.
+
+    Each round calls them in a new (seeded) random order: a call that writes megabytes
+    runs at the speed of the caches and freed memory the call before it left (on the
+    benchmark VM, a 14 MB fill took 0.35 ms after a call that freed such a block and
+    1.4 ms after one that churned the L3 with smaller ones), so a fixed order would
+    favour one of them in every round.
+    """
     for fn in fns.values():
         for _ in range(warmup):
             fn()
     out = {name: [] for name in fns}
+    names = list(fns)
+    rng = np.random.default_rng(seed)
     gc_was = gc.isenabled()
     gc.disable()
     try:
         for _ in range(repeats):
-            for name, fn in fns.items():
+            for name in rng.permutation(names):
+                fn = fns[name]
                 t0 = time.perf_counter()
                 fn()
                 out[name].append(time.perf_counter() - t0)

@@ -31,3 +31,14 @@ def test_cpu_times_reads_this_machine_or_says_it_cannot():
     assert (later >= times).all()
     share = harness.steal_share(times, later)
     assert share is None or 0.0 <= share <= 1.0
+
+
+def test_time_calls_times_every_function_each_round_in_a_new_order():
+    calls = []
+    fns = {name: (lambda name=name: calls.append(name)) for name in 'abc'}
+    times = harness.time_calls(fns, repeats=20, warmup=1)
+    assert {name: len(t) for name, t in times.items()} == {'a': 20, 'b': 20, 'c': 20}
+    rounds = [tuple(calls[i:i + 3]) for i in range(3, len(calls), 3)]
+    assert all(sorted(r) == ['a', 'b', 'c'] for r in rounds)
+    assert len(set(rounds)) > 1                                # not one fixed order
+    assert {r[0] for r in rounds} == {'a', 'b', 'c'}           # every function is sometimes first
