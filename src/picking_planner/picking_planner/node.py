@@ -38,7 +38,7 @@ from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
 from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
                          stamp_key, status, status_values)
-from .sent_plans import SentPlan, carried_points, carry_start, plan_active
+from .sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -245,14 +245,12 @@ class PlannerNode(Node):
         t_start = self.get_clock().now().nanoseconds * 1e-9 + delay
         if reference is not None:
             q, qd, qdd, stamp = reference
-            then = plan_active(self._sent, stamp) if stamp > 0 else None
+            then = forget_before(self._sent, stamp) if stamp > 0 else None
             n = q.size
-            if then is not None:
-                self._forget_before(then)
-                if np.abs(then.trajectory.state_at(stamp - then.start)[0][:n] - q).max() < FOLLOWING:
-                    plan = plan_active(self._sent, t_start) or then
-                    return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
-                                 'reference', t_start, carry_start(self._sent, stamp, t_start), carries_on=True)
+            if then is not None and np.abs(then.trajectory.state_at(stamp - then.start)[0][:n] - q).max() < FOLLOWING:
+                plan = plan_active(self._sent, t_start) or then
+                return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
+                             'reference', t_start, carry_start(self._sent, stamp, t_start), carries_on=True)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
             return Start(feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd),
                          'reference', t_start)
@@ -261,11 +259,11 @@ class PlannerNode(Node):
         q = measured[0]
         return Start((q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start)
 
-    def _forget_before(self, active):
-        """Forget the sent plans that can no longer run: those sent before ``active``, the plan
-        running at the controller's newest reference (a later time runs it or a newer plan)."""
-        while self._sent[0] is not active:
-            self._sent.popleft()
+    def _forget_old(self):
+        """Forget the sent plans that no fresh reference can be on (see :func:`forget_before`),
+        also while no reference comes: memory stays small."""
+        now = self.get_clock().now().nanoseconds * 1e-9
+        forget_before(self._sent, now - self.get_parameter('reference_timeout').value)
 
     # -- goals ---------------------------------------------------------------------------
     def _check_frame(self, header):
@@ -420,6 +418,7 @@ class PlannerNode(Node):
             return
         stamp_ns = int(round(stamp * 1e9))
         self._publish_trajectory(names, stamp_ns, points)
+        self._forget_old()
         self._sent.append(SentPlan(plan.trajectory, t_start, names, start.carries_on))
         self._newest_plan = (stamp_key(stamp_ns), (kind, header, plan_fn), attempt, self._sent[-1])
         summary = plan.summary(self.planner.settings.sample_period)

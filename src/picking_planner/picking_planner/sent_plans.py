@@ -28,6 +28,17 @@ def plan_active(sent, t):
     return None
 
 
+def forget_before(sent, t):
+    """Drop from the deque ``sent`` the plans that cannot run at ``t`` or later: those sent
+    before the plan active at ``t`` (a later time runs that one or a newer plan). Returns
+    the plan active at ``t``, or None (then nothing is dropped)."""
+    active = plan_active(sent, t)
+    if active is not None:
+        while sent[0] is not active:
+            sent.popleft()
+    return active
+
+
 def carry_start(sent, seen, t_start):
     """Where a new plan starting at ``t_start`` must carry the sent plans from: the start of
     the first plan the controller is not seen to run by ``seen`` (its reference's stamp),

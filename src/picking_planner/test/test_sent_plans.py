@@ -1,11 +1,13 @@
 """The planner's sent plans: which one runs when, and what a new plan carries (sent_plans.py)."""
 
+from collections import deque
+
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
 from picking_planner import trajectory
-from picking_planner.sent_plans import SentPlan, carried_points, carry_start, plan_active
+from picking_planner.sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active
 
 ARM = ['a', 'b']
 
@@ -80,3 +82,13 @@ def test_the_carry_start_is_the_first_unseen_start_or_the_last_running_plan_that
     fresh = [t for t in starts[1:] if plan_active(sent, t).start == t and not plan_active(sent, t).carries_on]
     want = (fresh[-1] if fresh else starts[0]) if starts else None
     assert carry_start(sent, seen, until) == want
+
+
+def test_plans_that_can_no_longer_run_are_forgotten():
+    sent = deque(sent_plans())
+    assert forget_before(sent, 9.0) is None and len(sent) == 3         # before any plan: all kept
+    assert forget_before(sent, 10.32).start == 10.3                     # A can no longer run
+    assert [p.start for p in sent] == [10.3, 10.35]
+    # A plan sent last that starts earliest runs from then on: all before it go.
+    sent.append(SentPlan(sent[0].trajectory, 10.31, ARM))
+    assert forget_before(sent, 10.4).start == 10.31 and len(sent) == 1
