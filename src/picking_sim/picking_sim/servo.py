@@ -21,6 +21,8 @@ from picking_planner.trajectory import quintic
 #: The middleware has been measured blocking a publishing thread (the servo's, with the GIL)
 #: for 0.33 s: such a stall is bridged too, not jumped.
 CATCH_UP = 0.5
+#: Most servo periods in a command_timeout (a period so short is a mistake: 1e9 is 50 ps at 0.05 s).
+MAX_HOLD_STEPS = 1e9
 
 
 @dataclass
@@ -91,6 +93,11 @@ class Servo:
         self.params.validate()
         if not (np.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f'servo period must be > 0 s, got {self.dt}')
+        if not (np.isfinite(self.command_timeout) and self.command_timeout > 0):
+            raise ValueError(f'command_timeout must be > 0 s, got {self.command_timeout}')
+        if not self.command_timeout / self.dt < MAX_HOLD_STEPS:
+            raise ValueError(f'servo period {self.dt:.3g} s is too short: command_timeout {self.command_timeout} s '
+                             f'would be more than {MAX_HOLD_STEPS:.0e} periods')
         self.q = np.array(self.q0, dtype=float).reshape(-1)
         if not np.all(np.isfinite(self.q)):
             raise ValueError('initial positions must be finite')

@@ -129,6 +129,14 @@ def test_bad_parameters_are_refused(field, value):
         Servo([0.0], params=ServoParams(**{field: value}))
 
 
+@pytest.mark.parametrize('dt, timeout, reason', [
+    (0.0, 0.05, 'servo period must be > 0 s'), (1e-3, np.nan, 'command_timeout must be > 0 s'),
+    (1e-3, 0.0, 'command_timeout must be > 0 s'), (2.2e-313, 0.05, 'servo period 2.2e-313 s is too short')])
+def test_bad_periods_and_timeouts_are_refused(dt, timeout, reason):
+    with pytest.raises(ValueError, match=reason):
+        Servo([0.0], dt=dt, command_timeout=timeout)
+
+
 def test_bad_commands_are_refused():
     servo = Servo([0.0, 0.0])
     with pytest.raises(ValueError):
