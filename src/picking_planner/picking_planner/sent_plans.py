@@ -10,8 +10,8 @@ import numpy as np
 
 class SentPlan(NamedTuple):
     """A plan as sent: its trajectory, its start on the controller's clock, its joint names,
-    and whether it carries on from the plan sent before it (starts from that plan's state at
-    ``start``) or from elsewhere (an extrapolated reference, the measured state)."""
+    and whether it carries on from the plans sent before it (starts from the state of the one
+    running at ``start``) or from elsewhere (an extrapolated reference, the measured state)."""
 
     trajectory: object
     start: float
