@@ -337,8 +337,9 @@ def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
                    if answers[k].level == DiagnosticStatus.ERROR and 'too late' not in answers[k].message]
         assert not refused, f'{len(refused)} of {len(keys)} goals refused, the first: {refused[0]}'
         # ... and the trajectories were one motion: no command needed more than a touch of limiting
-        # (a splice bridges the 1 mrad the planner allows between reference and plan; the jumps
-        # between plans that carried their predecessors' motion needed 500 rad/s^2 before).
+        # (the carried motion switches plans every few ms, each with its own jerk, and the spline
+        # through its 10 ms points overshoots a little there; the jumps between carried plans that
+        # had started elsewhere needed 500 rad/s^2 before).
         for line in (line for line in stack.controller.output().splitlines() if 'command limited' in line):
             found = re.search(r'its (velocity|acceleration) (\S+) is beyond the limit (\S+)', line)
             assert found and abs(float(found[2])) <= 1.5 * float(found[3]), line
