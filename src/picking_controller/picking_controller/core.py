@@ -41,6 +41,7 @@ class Prepared:
     t_splice: float
     version: int
     accepted: Event
+    lead_in: float = 0.0                 # s: the lead-in from the reference to the first point
 
 
 @dataclass(frozen=True)
@@ -95,6 +96,7 @@ class ControllerCore:
         self.mode = 'waiting'            # waiting -> holding <-> moving; fault on a violation
         self.traj: PiecewisePolynomial | None = None
         self.t0 = 0.0                    # clock time of the trajectory's t = 0
+        self.lead_in_end = -np.inf       # clock time its lead-in to its first point ends
         self.measured_q = None
         self.measured_qd = None
         self.measured_time = None
@@ -208,7 +210,7 @@ class ControllerCore:
     def reference(self, now):
         """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
         if self.next is not None and now >= self.next.t_splice:
-            self._set(self.next.traj, self.next.t_splice)
+            self._set(self.next.traj, self.next.t_splice, self.next.lead_in)
             self.mode = 'moving'
             self.max_error[:] = 0.0
         if self.traj is None:
@@ -246,10 +248,10 @@ class ControllerCore:
             self.limited += 1
             if self._limited_version != self.version:
                 self._limited_version = self.version
-                events.append(self._limited_event(q, qd, qdd, out_q, out_qd, out_qdd))
+                events.append(self._limited_event(q, qd, qdd, out_q, out_qd, out_qdd, now))
         return (out_q, out_qd, out_qdd), events
 
-    def _limited_event(self, q, qd, qdd, out_q, out_qd, out_qdd):
+    def _limited_event(self, q, qd, qdd, out_q, out_qd, out_qdd, now):
         """The WARN for a limited command: which joint, which limit, and the likely cause."""
         j = int(np.argmax(np.abs(out_q - q) + np.abs(out_qd - qd) + np.abs(out_qdd - qdd)))
         name = self.names[j]
@@ -260,12 +262,17 @@ class ControllerCore:
             what = f'its position {q[j]:.4g} is beyond [{self.lower[j]:.4g}, {self.upper[j]:.4g}]'
         elif out_qd[j] != qd[j]:
             what = f'its velocity {qd[j]:.4g} is beyond the limit {self.max_velocity[j]:.4g}'
+        elif now < self.lead_in_end:
+            what = (f'its acceleration {qdd[j]:.4g} is beyond the limit {self.max_acceleration[j]:.4g} '
+                    f'(in the {self.lead_in_end - self.t0:.3f} s lead-in from the reference to the trajectory\'s '
+                    'first point: give that point a later time_from_start, or start it where the arm is)')
         else:
             # Accelerations are checked at the points, not between them: a quintic through points
             # whose acceleration steps between them (cubic and LSPB plans) overshoots there.
             what = (f'its acceleration {qdd[j]:.4g} is beyond the limit {self.max_acceleration[j]:.4g} '
                     '(between the points: the spline through them overshoots where the planned acceleration '
-                    'steps, as in cubic and LSPB moves; jerk-limited plans do not)')
+                    'steps, as in cubic and LSPB moves, or turns sharply within a sample period; jerk-limited '
+                    'plans sampled finely enough do not)')
         return Event('WARN', f'command limited: the reference of {name}: {what}; sent within the limits '
                              '(reported once per trajectory)',
                      {'joint': name, 'position': float(q[j]), 'velocity': float(qd[j]),
@@ -285,9 +292,11 @@ class ControllerCore:
                                    + ('trajectory aborted, ' if was_moving else '') + 'holding')]
         return []
 
-    def _set(self, traj, t0):
-        """Make ``traj`` (its t = 0 at clock time ``t0``) the active trajectory."""
+    def _set(self, traj, t0, lead_in=0.0):
+        """Make ``traj`` (its t = 0 at clock time ``t0``, its first ``lead_in`` s a lead-in
+        from the reference) the active trajectory."""
         self.traj, self.t0 = traj, t0
+        self.lead_in_end = t0 + lead_in
         self.next = None
         self.version += 1
 
@@ -328,7 +337,7 @@ class ControllerCore:
         if prepared.version != self.version or now > prepared.t_splice:
             return None
         if now == prepared.t_splice:
-            self._set(prepared.traj, prepared.t_splice)
+            self._set(prepared.traj, prepared.t_splice, prepared.lead_in)
             self.mode = 'moving'
             self.max_error[:] = 0.0
         else:
@@ -417,7 +426,8 @@ class ControllerCore:
         if traj is None:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
-            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}))
+            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}),
+            lead_in=float(rel[keep][0]))
 
     def _starts_elsewhere(self, t, q, qd, tol=1e-6):
         """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""

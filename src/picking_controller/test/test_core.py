@@ -315,3 +315,18 @@ def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
     assert ev.level == 'OK', ev.message
     v = np.array([c.reference(now + k * 1e-3)[1][0] for k in range(200)])
     assert v.max() <= 2.0 + 1e-3
+
+
+def test_a_lead_in_too_short_for_the_acceleration_limit_is_limited_and_named_as_such():
+    """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest needs about 46 rad/s^2
+    (5.77 h / T^2) against 10. The commands keep the limit; the report says it is the lead-in."""
+    c = core()
+    assert c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0).level == 'OK'
+    reports = []
+    for now in np.arange(0.0, 1.1, 1e-3):
+        (_, _, sent_qdd), events = c.command(now)
+        assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
+        reports += events
+    assert len(reports) == 1, [r.message for r in reports]
+    assert 'reference of a: its acceleration' in reports[0].message
+    assert "lead-in from the reference to the trajectory's first point" in reports[0].message
