@@ -191,24 +191,33 @@ def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
     assert c.limited > 0
 
 
-def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
-    """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline
-    through them overshoots the limit (the points themselves keep it)."""
-    from picking_planner import trajectory
-    c = core()
-    plan = trajectory.lspb([0.0, 0.0], [0.3, 0.0], 0.6, 9.8)        # 9.8 of the 10 rad/s^2 limit
-    t = np.arange(0.0, 0.6 + 1e-9, 0.01)
-    q, qd, qdd = plan.sample(t)
-    assert plan.blend_time[0] % 0.01 > 1e-3                         # the step falls between two points
-    assert c.load(['a', 'b'], t, q, qd, qdd, 0.0, now=0.0).level == 'OK'
+def _the_one_limited_acceleration_report(c, until):
+    """Command every ms until ``until`` s: every acceleration sent within the limits, and one
+    report, of joint a's acceleration (returned)."""
     reports = []
-    for now in np.arange(0.0, 0.7, 1e-3):
+    for now in np.arange(0.0, until, 1e-3):
         (_, _, sent_qdd), events = c.command(now)
         assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
         reports += events
     assert len(reports) == 1, [r.message for r in reports]
     assert 'reference of a: its acceleration' in reports[0].message
-    assert 'beyond the limit 10' in reports[0].message and float(reports[0].values['acceleration']) > 10
+    return reports[0]
+
+
+def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
+    """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline
+    through them overshoots the limit (the points themselves keep it). It starts 55 ms after its
+    first point, at rest until then, so that the lead-in to its first point run keeps the limit."""
+    from picking_planner import trajectory
+    c = core()
+    plan = trajectory.lspb([0.0, 0.0], [0.3, 0.0], 0.6, 9.8)        # 9.8 of the 10 rad/s^2 limit
+    t = np.arange(0.0, 0.66 + 1e-9, 0.01)
+    q, qd, qdd = plan.sample(t - 0.055)
+    assert (0.055 + plan.blend_time[0]) % 0.01 > 1e-3               # the steps fall between two points
+    assert c.load(['a', 'b'], t, q, qd, qdd, 0.0, now=0.0).level == 'OK'
+    report = _the_one_limited_acceleration_report(c, until=0.7)
+    assert 'beyond the limit 10' in report.message and float(report.values['acceleration']) > 10
+    assert 'between the points' in report.message
 
 
 def test_a_trajectory_planned_from_another_reference_is_refused_as_stale_and_a_bad_one_is_not():
@@ -322,11 +331,5 @@ def test_a_lead_in_too_short_for_the_acceleration_limit_is_limited_and_named_as_
     (5.77 h / T^2) against 10. The commands keep the limit; the report says it is the lead-in."""
     c = core()
     assert c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0).level == 'OK'
-    reports = []
-    for now in np.arange(0.0, 1.1, 1e-3):
-        (_, _, sent_qdd), events = c.command(now)
-        assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
-        reports += events
-    assert len(reports) == 1, [r.message for r in reports]
-    assert 'reference of a: its acceleration' in reports[0].message
-    assert "lead-in from the reference to the trajectory's first point" in reports[0].message
+    report = _the_one_limited_acceleration_report(c, until=1.1)
+    assert "lead-in from the reference to the trajectory's first point" in report.message
