@@ -88,10 +88,11 @@ class Start(NamedTuple):
     state: tuple                  # (q, qd, qdd)
     source: str                   # 'reference' (the controller's) or 'measured'
     time: float                   # on the controller's clock, s
-    carry_from: float | None = None
+    carry_from: float | None = None   # where the points carry the sent plans from (None: nothing to carry)
     carries_on: bool = False      # from a sent plan the reference follows, at ``time``
 
     def words(self):
+        """What the plan started from, in words (for a refusal)."""
         if self.carries_on:
             return 'the plan running then'
         return "the controller's reference, extrapolated" if self.source == 'reference' else 'the measured state'
