@@ -266,7 +266,7 @@ class ControllerCore:
             what = (f'its acceleration {qdd[j]:.4g} is beyond the limit {self.max_acceleration[j]:.4g} '
                     f'(in the {self.lead_in_end - self.t0:.3f} s lead-in from the reference to the trajectory\'s '
                     'first point run: give that point more time from the reference, with a later time_from_start or '
-                    'header.stamp; points due within 20 ms are replaced by the lead-in)')
+                    f'header.stamp; points due within {MIN_LEAD * 1e3:.0f} ms are replaced by the lead-in)')
         else:
             # Accelerations are checked at the points, not between them: a quintic through points
             # whose acceleration steps between them (cubic and LSPB plans) overshoots there.

@@ -327,8 +327,8 @@ def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
 
 
 def test_a_lead_in_too_short_for_the_acceleration_limit_is_limited_and_named_as_such():
-    """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest needs about 46 rad/s^2
-    (5.77 h / T^2) against 10. The commands keep the limit; the report says it is the lead-in."""
+    """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest needs more than the
+    10 rad/s^2 limit. The commands keep the limit; the report says it is the lead-in."""
     c = core()
     assert c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0).level == 'OK'
     report = _the_one_limited_acceleration_report(c, until=1.1)
