@@ -72,7 +72,7 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
         inp.minimum_duration = float(min_duration)
     traj = Trajectory(n)
     try:
-        result = Ruckig(n).calculate(inp, traj)
+        result = _calculate(Ruckig(n), inp, traj)
     except RuckigError as exc:                  # an input Ruckig refuses (e.g. a target beyond a limit)
         raise ValueError(f'no jerk-limited move: {" ".join(str(exc).split())}') from None
     if result != Result.Working and result != Result.Finished:
@@ -102,7 +102,7 @@ def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
     inp.max_jerk = _limits(max_jerk, n, 'max_jerk').tolist()
     traj = Trajectory(n)
     try:
-        result = Ruckig(n).calculate(inp, traj)
+        result = _calculate(Ruckig(n), inp, traj)
     except RuckigError as exc:
         raise ValueError(f'no jerk-limited stop: {" ".join(str(exc).split())}') from None
     if result != Result.Working and result != Result.Finished:
@@ -110,6 +110,36 @@ def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
     if traj.duration <= 0.0:
         raise ValueError('already at rest: nothing to stop')
     return _to_piecewise(traj, n)
+
+
+#: Relative tightenings of the limits tried when Ruckig fails on the limits as given.
+RETRY_SHRINK = (1e-9, 1e-6)
+
+
+def _calculate(ruckig, inp, traj):
+    """``ruckig.calculate(inp, traj)``, again with every limit a hair lower if it raises.
+
+    Ruckig 0.19 fails ("error in step 1") on a few inputs that lie exactly on the border
+    between two profile shapes: a line of 0.08 m at 0.6 m/s, 4 m/s^2 and 40 m/s^3 (as
+    progress limits 7.5/s, 50/s^2, 500/s^3, give or take a rounding) fails, while 1e-15
+    more or less length works. Limits lower by a part in 1e-9 move the input off the
+    border and keep every limit. An input Ruckig refuses for what it is (a target speed
+    above the limit) fails again, and its first error is raised.
+    """
+    from ruckig import RuckigError
+
+    try:
+        return ruckig.calculate(inp, traj)
+    except RuckigError as first:
+        limits = (list(inp.max_velocity), list(inp.max_acceleration), list(inp.max_jerk))
+        for shrink in RETRY_SHRINK:
+            inp.max_velocity, inp.max_acceleration, inp.max_jerk = ([x * (1.0 - shrink) for x in lim]
+                                                                  for lim in limits)
+            try:
+                return ruckig.calculate(inp, traj)
+            except RuckigError:
+                continue
+        raise first
 
 
 def _ending_at(traj, qf):
