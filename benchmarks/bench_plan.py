@@ -18,6 +18,8 @@ from picking_planner import trajectory
 from picking_planner.planning import Planner, PlannerSettings
 
 ROOT = Path(__file__).resolve().parents[1]
+#: Row 7: how far from P1, P3 and P4 the joint moves meet the lines (PickSettings.blend_radius), m.
+BLEND_RADIUS = 0.02
 APPLE = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])   # config/pick_cycle.yaml
 
 
@@ -82,15 +84,33 @@ def _rest_floor(planner, plan, label):
     return seg.duration, floor, joints
 
 
+def _corner_passes(arm, sharp, rounded):
+    """``(corner, distance)``: how close the tool of ``rounded`` passes each corner of ``sharp`` (where its
+    lines begin or end: P1, P3, P4 on the way in and out), in the joint move that rounds it, m."""
+    out = []
+    for corner, line, end, move in (('P1', 'P2 to the apple', 0, 'P1 approach'),
+                                    ('P3', 'P3 lift and detach', 1, 'P4 above the box'),
+                                    ('P4 in', 'P5 into the box', 0, 'P4 above the box'),
+                                    ('P4 out', 'P4 out of the box', 1, 'P0 back home')):
+        seg = next(s for s in sharp.segments if s.label == line)
+        q = sharp.trajectory.sample([seg.start + end * seg.duration])[0][:, :arm.dof]
+        point = arm.fk(q)[0, :3, 3]
+        seg = next(s for s in rounded.segments if s.label == move)
+        q = rounded.trajectory.sample(np.linspace(seg.start, seg.start + seg.duration, 4000))[0][:, :arm.dof]
+        out.append((corner, float(np.linalg.norm(arm.fk(q)[:, :3, 3] - point, axis=1).min())))
+    return out
+
+
 def jerk_limited_cycle():
     """Row 7: the cycle within velocity, acceleration and jerk limits, optimal segments against fixed-time ones."""
     arm = _arm()
     start = _start(PickSettings())
     jerk_limited = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
                                                 limit_jerk=True, cartesian_profile='optimal'))
-    optimal, stopping = (PickCycle(jerk_limited, PickSettings(approach_method='optimal', transfer_method='optimal',
-                                                              blend=blend).validate(arm)).plan(start, APPLE)
-                         for blend in (True, False))
+    optimal, sharp, stopping = (
+        PickCycle(jerk_limited, PickSettings(approach_method='optimal', transfer_method='optimal', blend=blend,
+                                             blend_radius=radius).validate(arm)).plan(start, APPLE)
+        for blend, radius in ((True, BLEND_RADIUS), (True, 0.0), (False, 0.0)))
     # The paper's way (Sec. 3.2 D): every section a fixed 2 s, cubic with parabolic blends (LSPB), lines
     # and dwells as in our cycle.
     fixed = PickCycle(Planner(arm, PlannerSettings(speed_scale=1.0, duration=2.0)),
@@ -109,13 +129,18 @@ def jerk_limited_cycle():
                       f'needs ≥ {floor:.3f} s')
     lines = sum(s.duration for s in optimal.segments if s.label.startswith(('P2', 'P3', 'P5', 'P4 out')))
     dwells = sum(s.duration for s in optimal.segments if s.label in ('grasp', 'release'))
-    rows = [['7', 'Table 1 cycle within v, a and jerk limits: optimal (Ruckig) segments, P1, P3, P4 passed at speed',
+    passes = ', '.join(f'{corner} {1e3 * d:.1f} mm' for corner, d in _corner_passes(arm, sharp, optimal))
+    rows = [['7', 'Table 1 cycle within v, a and jerk limits: optimal (Ruckig) segments, P1, P3, P4 passed at speed, '
+             f'corners rounded (blend_radius {100 * BLEND_RADIUS:g} cm)',
              f'{optimal.duration:.2f} s', f'peak jerk {_peak_jerk_ratio(arm, optimal):.2f} of the limit; {segments}; '
-             + '; '.join(floors) + f'; four lines {lines:.2f} s, two dwells {dwells:.2f} s',
-             '≤ 5 s', 'met' if optimal.duration <= 5.0 else 'missed'],
+             + '; '.join(floors) + f'; four lines {lines:.2f} s, two dwells {dwells:.2f} s; the tool passes the '
+             f'corners at {passes}', '≤ 5 s', 'met' if optimal.duration <= 5.0 else 'missed'],
+            ['7', 'the same, through the corners (blend_radius 0: the lines end at P1, P3, P4)',
+             f'{sharp.duration:.2f} s', f'peak jerk {_peak_jerk_ratio(arm, sharp):.2f} of the limit', '—',
+             f'rounding saves {sharp.duration - optimal.duration:.2f} s'],
             ['7', 'the same, stopping at every knot point (blend: false)', f'{stopping.duration:.2f} s',
              f'peak jerk {_peak_jerk_ratio(arm, stopping):.2f} of the limit', '—',
-             f'blending saves {stopping.duration - optimal.duration:.2f} s'],
+             f'passing at speed saves {stopping.duration - sharp.duration:.2f} s'],
             ['7', "the paper's fixed-time segments (2 s each, LSPB)", f'{fixed.duration:.2f} s',
              f'acceleration steps up to {_accel_steps(arm, fixed):.1f} rad/s² (unbounded jerk)', '—',
              f'optimal {fixed.duration / optimal.duration:.1f}x faster'],

@@ -61,7 +61,7 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
         'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy',
-        'place_yaw_free', 'blend')
+        'place_yaw_free', 'blend', 'blend_radius')
 
 
 def msg_pose(pose):

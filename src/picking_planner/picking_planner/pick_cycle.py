@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import trajectory
+from . import geometry, trajectory
 from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
 
@@ -75,6 +75,16 @@ class PickSettings:
         Needs the ``optimal`` approach and transfer methods and the planner's
         ``cartesian_profile: optimal`` (jerk-limited: the joints' velocity and
         acceleration stay continuous through the blends).
+    blend_radius : float
+        With ``blend``: the joint moves meet the lines this far from P1, P3 and P4, m
+        (0: at those points). The lines to the apple, up from it, into the box and out of
+        it are that much shorter, and each joint move rounds its corner: it rises the
+        rest of the way to P3 while the waist starts its turn, and finishes the turn
+        while it descends from P4 to where the line into the box begins. Less than half
+        of ``approach_distance``, ``lift_height`` and ``box_drop_height``, so that most
+        of every line stays straight (the apple is pulled straight off for at least half
+        the lift). With 2 cm the tool passes within 3 mm of every corner point and the
+        jerk-limited cycle takes 4.93 s instead of 5.18 s (``make bench``, row 7).
     """
 
     home_positions: tuple = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
@@ -93,6 +103,7 @@ class PickSettings:
     gripper_open: float = 0.09
     gripper_closed: float = 0.055
     blend: bool = False
+    blend_radius: float = 0.0
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -118,10 +129,32 @@ class PickSettings:
             raise ValueError(f'transfer_method must be one of {TRANSFER_METHODS}, got {self.transfer_method!r}')
         if not 0.0 <= self.gripper_closed < self.gripper_open:
             raise ValueError('need 0 <= gripper_closed < gripper_open')
+        if not (np.isfinite(self.blend_radius) and self.blend_radius >= 0.0):
+            raise ValueError(f'blend_radius must be a finite number >= 0 m, got {self.blend_radius}')
+        if self.blend_radius > 0.0:
+            if not self.blend:
+                raise ValueError('blend_radius needs blend: true (the joint moves meet the shortened lines at speed)')
+            shortest = min(('approach_distance', self.approach_distance), ('lift_height', self.lift_height),
+                           ('box_drop_height', self.box_drop_height), key=lambda x: x[1])
+            if self.blend_radius >= 0.5 * shortest[1]:
+                raise ValueError(f'blend_radius {self.blend_radius} m must be less than half of every line: '
+                                 f'{shortest[0]} is {shortest[1]} m')
         if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
             raise ValueError('blend needs approach_method and transfer_method optimal (jerk-limited moves to '
                              'and from moving states)')
         return self
+
+
+def _toward(T_from, T_to, distance):
+    """The pose ``distance`` m from ``T_from`` on the straight line to ``T_to``, its orientation
+    turned in proportion (as a line's slerp)."""
+    delta = T_to[:3, 3] - T_from[:3, 3]
+    frac = distance / np.linalg.norm(delta)
+    out = T_from.copy()
+    out[:3, 3] += frac * delta
+    turn = Rotation.from_matrix(T_from[:3, :3].T @ T_to[:3, :3]).as_rotvec()
+    out[:3, :3] = T_from[:3, :3] @ Rotation.from_rotvec(frac * turn).as_matrix()
+    return out
 
 
 def _offset(T, local):
@@ -206,8 +239,10 @@ class PickCycle:
         def transfer(lift, into_box=None):
             """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
             q_lift = lift.end_state()[0]
-            q_box = q['P4'] if into_box is None else into_box.start_state()[0]
-            return pl._via(np.array([q_lift, self._clearance(q_lift, q_box), q_box]), s.transfer_method,
+            q_box = q4 if into_box is None else into_box.start_state()[0]
+            # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
+            q_top = q_lift if r == 0.0 else self._top(q_apple, poses)
+            return pl._via(np.array([q_lift, self._clearance(q_top, q['P4']), q_box]), s.transfer_method,
                            blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
         def home_from(rise):
@@ -215,9 +250,14 @@ class PickCycle:
             v0, a0 = blend_state(rise, True)
             return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
 
+        # With a blend radius the joint moves meet the lines that far from P1, P3 and P4: the
+        # lines are that much shorter, and the corners are rounded by the joint moves.
+        r = s.blend_radius
+        q1 = q['P1'] if r == 0.0 else self._ik_toward(poses['P1'], poses['P2'], r, q['P1'])
+        q4 = q['P4'] if r == 0.0 else self._ik_toward(poses['P4'], poses['P5'], r, q['P4'])
         # P1: the approach ends where (and as fast as) the line to the apple starts.
         moved, (traj, path) = self._quickest(
-            speeds, lambda f, rest: pl.line(q['P1'], arm.fk(q['P1']), poses['P2'], (f, 0.0), rest), approach)
+            speeds, lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest), approach)
         add('P1 approach', joint_method, moved)
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
@@ -231,7 +271,7 @@ class PickCycle:
         add('P3 lift and detach', s.lift_method, lift, path)
         # ... and the transfer into the line into the box.
         moved, (traj, path) = self._quickest(
-            speeds, lambda f, rest: pl.line(q['P4'], arm.fk(q['P4']), poses['P5'], (f, 0.0), rest),
+            speeds, lambda f, rest: pl.line(q4, arm.fk(q4), poses['P5'], (f, 0.0), rest),
             lambda line: transfer(lift, line))
         add('P4 above the box', s.transfer_method, moved)
         add('P5 into the box', 'line', traj, path)
@@ -240,7 +280,7 @@ class PickCycle:
         if s.blend:
             # Straight up out of the box (the way in, reversed), flowing into the move home.
             moved, (traj, path) = self._quickest(
-                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q['P4']), (0.0, f), rest), home_from)
+                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q4), (0.0, f), rest), home_from)
             add('P4 out of the box', 'line', traj, path)
             add('P0 back home', s.transfer_method, moved)
         else:
@@ -275,18 +315,42 @@ class PickCycle:
 
     def _lift(self, q_apple, poses, speed, rest=None):
         """The lift from the apple to P3 (a line, or an arc that also pulls back), leaving P3
-        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest)."""
-        pl, s = self.planner, self.s
+        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest).
+
+        With a blend radius the lift ends that far before its end (along the line or the arc)."""
+        pl, s, r = self.planner, self.s, self.s.blend_radius
+        T2, mid, end = self._lift_poses(q_apple, poses)
+        if mid is None:
+            return pl.line(q_apple, T2, end if r == 0.0 else _toward(end, T2, r), (0.0, speed), rest)
+        if r > 0.0:
+            arc = geometry.Arc.through(T2[:3, 3], mid[:3, 3], end[:3, 3])
+            mid, end = mid.copy(), end.copy()
+            mid[:3, 3] = arc.at(0.5 * (arc.length - r))[0]
+            end[:3, 3] = arc.at(arc.length - r)[0]
+        return pl.arc(q_apple, T2, mid, end, (0.0, speed), rest)
+
+    def _lift_poses(self, q_apple, poses):
+        """``(start, through, end)`` of the whole lift: the tool at the apple, the arc's middle
+        (None for a line) and its end (P3 for a line)."""
+        s = self.s
         T2 = self.arm.fk(q_apple)
         if s.lift_method == 'line':
-            return pl.line(q_apple, T2, poses['P3'], (0.0, speed), rest)
+            return T2, None, poses['P3']
         back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
         back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
         mid = T2.copy()
         mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
         end = T2.copy()
         end[:3, 3] += back + np.array([0, 0, s.lift_height])
-        return pl.arc(q_apple, T2, mid, end, (0.0, speed), rest)
+        return T2, mid, end
+
+    def _top(self, q_apple, poses):
+        """The joints at the end of the whole lift (where the transfer would start without a blend radius)."""
+        return self.arm.check_reachable(self._lift_poses(q_apple, poses)[2], seed=q_apple)
+
+    def _ik_toward(self, T_from, T_to, distance, seed):
+        """The joints where the tool is ``distance`` m from ``T_from`` on the line to ``T_to``."""
+        return self.arm.check_reachable(_toward(T_from, T_to, distance), seed=seed)
 
     def _quickest_place(self, poses, q_lift, home):
         """P4 and P5 turned about the vertical for the quickest transfer and return."""
