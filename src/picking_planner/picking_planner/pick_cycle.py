@@ -253,8 +253,8 @@ class PickCycle:
         # With a blend radius the joint moves meet the lines that far from P1, P3 and P4: the
         # lines are that much shorter, and the corners are rounded by the joint moves.
         r = s.blend_radius
-        q1 = q['P1'] if r == 0.0 else self._ik_toward(poses['P1'], poses['P2'], r, q['P1'])
-        q4 = q['P4'] if r == 0.0 else self._ik_toward(poses['P4'], poses['P5'], r, q['P4'])
+        q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
+        q4 = q['P4'] if r == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r, q['P4'])
         # P1: the approach ends where (and as fast as) the line to the apple starts.
         moved, (traj, path) = self._quickest(
             speeds, lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest), approach)
@@ -348,9 +348,14 @@ class PickCycle:
         """The joints at the end of the whole lift (where the transfer would start without a blend radius)."""
         return self.arm.check_reachable(self._lift_poses(q_apple, poses)[2], seed=q_apple)
 
-    def _ik_toward(self, T_from, T_to, distance, seed):
-        """The joints where the tool is ``distance`` m from ``T_from`` on the line to ``T_to``."""
-        return self.arm.check_reachable(_toward(T_from, T_to, distance), seed=seed)
+    def _ik_toward(self, name, T_from, T_to, distance, seed):
+        """The joints where the tool is ``distance`` m from ``T_from`` (the knot point ``name``) on the
+        line to ``T_to``; Unreachable naming the point and the blend radius."""
+        try:
+            return self.arm.check_reachable(_toward(T_from, T_to, distance), seed=seed)
+        except Unreachable as exc:
+            raise Unreachable(f'{name} ({_LABELS[name]}) moved by blend_radius {distance} m along its line: '
+                              f'{exc}') from None
 
     def _quickest_place(self, poses, q_lift, home):
         """P4 and P5 turned about the vertical for the quickest transfer and return."""
