@@ -230,6 +230,24 @@ def test_a_blend_radius_needs_blend_and_must_leave_most_of_every_line_straight(a
             PickSettings(**{**base, **bad}).validate(arm)
 
 
+def test_a_point_moved_by_the_blend_radius_that_cannot_be_reached_is_named(arm, monkeypatch):
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
+                                           limit_jerk=True, cartesian_profile='optimal'))
+    cycle = PickCycle(planner, PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
+                                            blend_radius=0.02).validate(arm))
+    P1 = cycle.key_poses(APPLE)['P1'][:3, 3]
+    reachable = arm.check_reachable
+
+    def check_reachable(T, seed=None):          # the workspace ends just past P1, toward the apple
+        if abs(np.linalg.norm(T[:3, 3] - P1) - 0.02) < 1e-9:
+            raise Unreachable('beyond the reach (a test)')
+        return reachable(T, seed)
+
+    monkeypatch.setattr(arm, 'check_reachable', check_reachable)
+    with pytest.raises(Unreachable, match=r'^P1 \(approach\) moved by blend_radius 0.02 m along its line: beyond'):
+        cycle.plan((HOME, Z, Z), APPLE)
+
+
 def test_blend_needs_the_optimal_methods(arm):
     with pytest.raises(ValueError, match='blend needs'):
         PickSettings(blend=True).validate(arm)
