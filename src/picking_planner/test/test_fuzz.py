@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import event, given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from picking_planner import geometry, trajectory
@@ -277,3 +277,25 @@ def test_pick_cycle(arm, p, values):
         return
     refused_or_finite(PickCycle(Planner(arm, PlannerSettings(speed_scale=1.0)), settings_).plan,
                       (np.array(settings_.home_positions), np.zeros(6), np.zeros(6)), T)
+
+
+ROUNDED = st.fixed_dictionaries({'blend_radius': st.floats(0.0, 0.06), 'lift_height': st.floats(0.01, 0.12),
+                                 'approach_distance': st.floats(0.01, 0.15), 'box_drop_height': st.floats(0.01, 0.2),
+                                 'lift_method': st.sampled_from(['line', 'arc'])})
+
+
+@settings(max_examples=60)          # a blended cycle takes about 0.1 s to plan: 60 even in the long profile
+@given(st.floats(0.55, 0.8), st.one_of(ROUNDED, st.fixed_dictionaries({
+    'blend_radius': WILD, 'lift_height': WILD, 'approach_distance': WILD, 'box_drop_height': WILD})))
+def test_blended_pick_cycle_with_rounded_corners(arm, x, values):
+    try:
+        settings_ = PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
+                                 **values).validate(arm)
+    except ValueError:
+        return
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal', limit_jerk=True,
+                                           cartesian_profile='optimal'))
+    T = pose_matrix([x, 0.15, 0.65], [0.0, math.sqrt(0.5), 0.0, math.sqrt(0.5)])
+    plan = refused_or_finite(PickCycle(planner, settings_).plan, (np.array(settings_.home_positions),
+                                                                  np.zeros(6), np.zeros(6)), T)
+    event('planned' if plan is not None else 'refused while planning')
