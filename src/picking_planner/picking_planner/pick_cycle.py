@@ -241,8 +241,8 @@ class PickCycle:
             q_lift = lift.end_state()[0]
             q_box = q4 if into_box is None else into_box.start_state()[0]
             # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
-            q_top = q_lift if r == 0.0 else self._top(q_apple, poses)
-            return pl._via(np.array([q_lift, self._clearance(q_top, q['P4']), q_box]), s.transfer_method,
+            corner = q_lift if q_top is None else q_top
+            return pl._via(np.array([q_lift, self._clearance(corner, q['P4']), q_box]), s.transfer_method,
                            blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
         def home_from(rise):
@@ -261,6 +261,7 @@ class PickCycle:
         add('P1 approach', joint_method, moved)
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
+        q_top = None if r == 0.0 else self._top(q_apple, poses)     # the corner at P3 (the lift's end without r)
         add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
         # P3: the lift flows into the transfer (stopping at P4 for this choice; without blends there is no
         # choice to make, and the transfer is planned once, below) ...
