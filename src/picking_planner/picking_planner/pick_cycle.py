@@ -8,6 +8,9 @@ line up, or an arc that lifts and pulls back) -> P4 above the fruit box
 box (a line down) -> release (a dwell while the gripper opens) -> back to P0
 (via-point LSPB up through P4).
 
+With ``blend`` the arm passes P1, P3 and P4 at speed instead of stopping there, and
+``blend_radius`` rounds those corners (see :class:`PickSettings`).
+
 The gripper is a joint of the plan (``gripper_joint``, the finger opening in m),
 so grasp and release reach every subscriber of ``joint_states`` with their times.
 """
