@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from harness import fmt_time, median, p99, time_calls
+from picking_planner.analysis import corner_path, pick_corners
 from picking_planner.kinematics import ArmModel, pose_matrix
 from picking_planner.pick_cycle import PickCycle, PickSettings
 from picking_planner import trajectory
@@ -87,18 +88,8 @@ def _rest_floor(planner, plan, label):
 def _corner_passes(arm, sharp, rounded):
     """``(corner, distance)``: how close the tool of ``rounded`` passes each corner of ``sharp`` (where its
     lines begin or end: P1, P3, P4 on the way in and out), in the joint move that rounds it, m."""
-    out = []
-    for corner, line, end, move in (('P1', 'P2 to the apple', 0, 'P1 approach'),
-                                    ('P3', 'P3 lift and detach', 1, 'P4 above the box'),
-                                    ('P4 in', 'P5 into the box', 0, 'P4 above the box'),
-                                    ('P4 out', 'P4 out of the box', 1, 'P0 back home')):
-        seg = next(s for s in sharp.segments if s.label == line)
-        q = sharp.trajectory.sample([seg.start + end * seg.duration])[0][:, :arm.dof]
-        point = arm.fk(q)[0, :3, 3]
-        seg = next(s for s in rounded.segments if s.label == move)
-        q = rounded.trajectory.sample(np.linspace(seg.start, seg.start + seg.duration, 4000))[0][:, :arm.dof]
-        out.append((corner, float(np.linalg.norm(arm.fk(q)[:, :3, 3] - point, axis=1).min())))
-    return out
+    return [(name, float(np.linalg.norm(corner_path(arm, rounded, name) - point, axis=1).min()))
+            for name, point, _ in pick_corners(arm, sharp)]
 
 
 def jerk_limited_cycle():

@@ -58,3 +58,38 @@ def parse_segments(text):
         method, duration, _ = rest.split()
         out.append((label.strip(), method, float(duration)))
     return out
+
+
+#: The blended pick cycle's corners: (name, the line that ends or starts there, 1 if it ends there (0: starts),
+#: the joint move on the other side).
+PICK_CORNERS = (('P1', 'P2 to the apple', 0, 'P1 approach'),
+                ('P3', 'P3 lift and detach', 1, 'P4 above the box'),
+                ('P4 in', 'P5 into the box', 0, 'P4 above the box'),
+                ('P4 out', 'P4 out of the box', 1, 'P0 back home'))
+
+
+def _segment(plan, label):
+    return next(s for s in plan.segments if s.label == label)
+
+
+def pick_corners(arm, plan):
+    """The corners of a blended pick cycle planned without a blend radius (``PickSettings.blend``):
+    ``(name, point, direction)`` per corner of :data:`PICK_CORNERS`, the point where its line ends
+    or starts (m) and the line's unit direction toward it."""
+    out = []
+    for name, line, end, _ in PICK_CORNERS:
+        seg = _segment(plan, line)
+        q = plan.trajectory.sample([seg.start, seg.start + seg.duration])[0][:, :arm.dof]
+        ends = arm.fk(q)[:, :3, 3]
+        toward = ends[1] - ends[0] if end else ends[0] - ends[1]
+        out.append((name, ends[end], toward / np.linalg.norm(toward)))
+    return out
+
+
+def corner_path(arm, plan, name, samples=2000):
+    """The tool's positions (N, 3) in ``plan`` along the line and the joint move that meet at the
+    corner ``name`` of :data:`PICK_CORNERS`, in time order."""
+    _, line, end, move = next(c for c in PICK_CORNERS if c[0] == name)
+    first, second = (_segment(plan, line), _segment(plan, move))[::1 if end else -1]
+    t = np.linspace(first.start, second.start + second.duration, samples)
+    return arm.fk(plan.trajectory.sample(t)[0][:, :arm.dof])[:, :3, 3]

@@ -128,3 +128,34 @@ def plot_workspace(path, tool, arm):
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)
+
+
+def plot_corners(path, corners, tracks, title, window=0.05):
+    """The tool near each corner of a path, side on: one panel per ``(name, point, direction)`` of
+    ``corners`` (the line's unit direction toward the point), with every track of ``tracks`` (label ->
+    name -> (N, 3) tool positions) within ``window`` m of the point, drawn as the distance along the
+    line past the corner against the distance from the line (mm)."""
+    plt = _pyplot()
+    cols = min(len(corners), 2)
+    rows = -(-len(corners) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.0 * cols, 3.6 * rows), squeeze=False)
+    for ax, (name, point, direction) in zip(axes.flat, corners):
+        for label, paths in tracks.items():
+            rel = paths[name] - point
+            near = np.linalg.norm(rel, axis=1) <= window
+            along = rel @ direction
+            off = np.linalg.norm(rel - along[:, None] * direction, axis=1)
+            ax.plot(1e3 * along[near], 1e3 * off[near], label=label)
+        ax.scatter([0.0], [0.0], color='k', s=20, zorder=3)
+        ax.annotate(f' {name}', (0.0, 0.0))
+        ax.set_xlabel('along the line past the corner [mm]')
+        ax.set_ylabel('off the line [mm]')
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.grid(True, alpha=0.3)
+    for ax in axes.flat[len(corners):]:
+        ax.set_visible(False)
+    fig.suptitle(title)
+    legend_below(fig, axes.flat[0], ncol=len(tracks))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

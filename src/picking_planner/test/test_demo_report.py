@@ -13,7 +13,9 @@ def test_the_method_comparison_plans_each_cycle_with_its_own_profiles(arm):
     for name in ('planner.yaml', 'pick_cycle.yaml'):
         params.update(yaml.safe_load((config_dir() / name).read_text())['/**/picking_planner']['ros__parameters'])
     apple = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])
-    rows = {label: (float(t), float(a), float(j)) for label, t, a, j in compare_methods(arm, params, apple)}
+    table, plans = compare_methods(arm, params, apple)
+    rows = {label: (float(t), float(a), float(j)) for label, t, a, j in table}
+    assert {label: f'{plan.duration:.2f}' for label, plan in plans.items()} == {r[0]: r[1] for r in table}
     cubic, quintic, lspb, optimal, rounded = (rows[next(label for label in rows if label.startswith(start))]
                                               for start in ('cubic', 'quintic', 'lspb', 'optimal', 'the same'))
     assert len(rows) == 5 and 'corners rounded' in next(reversed(rows))

@@ -7,7 +7,7 @@ import json
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..analysis import cartesian_deviation, parse_segments, peak_jerk, tracking_error
+from ..analysis import cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners, tracking_error
 from ..kinematics import ArmModel, pose_matrix
 from ..pick_cycle import PickCycle, PickSettings
 from ..planning import Planner, PlannerSettings
@@ -38,17 +38,22 @@ def _table(header, rows):
     return '\n'.join(out)
 
 
+#: compare_methods' labels of the jerk-limited cycle through its corners and with them rounded.
+THROUGH_CORNERS = 'optimal, jerk-limited, P1, P3, P4 passed at speed'
+ROUNDED = 'the same, corners rounded (blend_radius 2 cm)'
+
+
 def compare_methods(arm, planner_params, apple_T):
     """The same cycle with cubic, quintic and LSPB segments, and jerk-limited (optimal, blended, with and
-    without rounded corners):
-    cycle time, peak |qdd|, largest jerk."""
+    without rounded corners): ``(rows, plans)``, a row (label, cycle time, peak |qdd|, largest jerk) and
+    the plan of each, by label."""
     settings = PlannerSettings(**{k: v for k, v in planner_params.items()
                                   if k in PlannerSettings.__dataclass_fields__})
     pick = PickSettings(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in planner_params.items()
                            if k in PickSettings.__dataclass_fields__}).validate(arm)
     home = np.asarray(pick.home_positions, float)
     z = np.zeros(arm.dof)
-    rows = []
+    rows, plans = [], {}
     jerk_limited = dict(method='optimal', path_method='optimal', limit_jerk=True, cartesian_profile='optimal')
     for label, changes, pick_changes in (
             ('cubic (transfer quintic_via)', dict(method='cubic'),
@@ -56,9 +61,9 @@ def compare_methods(arm, planner_params, apple_T):
             ('quintic (transfer quintic_via)', dict(method='quintic'),
              dict(approach_method='quintic', transfer_method='quintic_via')),
             ('lspb (transfer via_lspb)', dict(method='lspb'), dict(approach_method='lspb', transfer_method='via_lspb')),
-            ('optimal, jerk-limited, P1, P3, P4 passed at speed', jerk_limited,
+            (THROUGH_CORNERS, jerk_limited,
              dict(approach_method='optimal', transfer_method='optimal', blend=True)),
-            ('the same, corners rounded (blend_radius 2 cm)', jerk_limited,
+            (ROUNDED, jerk_limited,
              dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02))):
         planner = Planner(arm, PlannerSettings(**{**settings.__dict__, **changes}))
         plan = PickCycle(planner, PickSettings(**{**pick.__dict__, **pick_changes}).validate(arm)).plan(
@@ -67,12 +72,13 @@ def compare_methods(arm, planner_params, apple_T):
         _, _, qdd = plan.trajectory.sample(t)
         rows.append((label, f'{plan.duration:.2f}', f'{np.abs(qdd[:, :arm.dof]).max():.2f}',
                      f'{peak_jerk(t, qdd[:, :arm.dof]).max():.0f}'))
-    return rows
+        plans[label] = plan
+    return rows, plans
 
 
 def analyse_and_report(rec, events, config, out, quick=False):
     """Write report.md, report.json, plots and demo.mcap; print the report; True if all checks pass."""
-    from ..plots import plot_path_3d, plot_profiles
+    from ..plots import plot_corners, plot_path_3d, plot_profiles
     from .demo import load_demo_settings, log
     import yaml
     arm = ArmModel.from_urdf(config / 'picking_arm.urdf')
@@ -142,11 +148,12 @@ def analyse_and_report(rec, events, config, out, quick=False):
                       '(`gripper_joint` in joint_states).']
 
     apple_T = pose_matrix(demo['apple_position'], Rotation.from_euler('xyz', demo['apple_rpy']).as_quat())
+    compared = {}
     if not quick:
         log('planning the same cycle with cubic, quintic, LSPB and jerk-limited segments')
+        rows, compared = compare_methods(arm, params, apple_T)
         lines += ['', '## The same cycle with cubic, quintic, LSPB and jerk-limited segments (planned in process)', '',
-                  _table(['method', 'cycle time [s]', 'peak |qdd| [rad/s²]', 'largest jerk [rad/s³]'],
-                         compare_methods(arm, params, apple_T)),
+                  _table(['method', 'cycle time [s]', 'peak |qdd| [rad/s²]', 'largest jerk [rad/s³]'], rows),
                   '', 'Cubic segments start and stop with a step in acceleration (an infinite jerk, here the '
                   'acceleration change within one 1 ms sample); LSPB blends too; quintics keep acceleration '
                   'continuous. The paper\'s claim that parabolic transitions move smoothly is about velocity '
@@ -154,7 +161,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
                   'The jerk-limited cycle (Ruckig\'s time-optimal segments within the jerk limits of '
                   '`config/picking_arm_joint_limits.yaml`, `blend: true`) keeps every jerk limit at a fraction '
                   'of a second more; rounding its corners at P1, P3 and P4 (`blend_radius`) takes a quarter of '
-                  'a second off.']
+                  'a second off (`corners.png`: the tool at each corner, side on).']
     if 'arc' in events:
         lines += arc_section(rec, events['arc'], arm, names)
 
@@ -176,6 +183,12 @@ def analyse_and_report(rec, events, config, out, quick=False):
                                          trajectories[events['arc']['trajectory_index']][0])
         curves['Sec. 3.1 arc'] = arm.fk(qa[:, :n_arm])[:, :3, 3]
     files.append(plot_path_3d(out / 'tool_path.png', curves, None, 'Tool path of the pick cycle', marks))
+    if compared:
+        corners = pick_corners(arm, compared[THROUGH_CORNERS])
+        tracks = {label: {name: corner_path(arm, compared[key], name) for name, _, _ in corners}
+                  for label, key in (('through the corners', THROUGH_CORNERS), ('rounded, blend_radius 2 cm', ROUNDED))}
+        files.append(plot_corners(out / 'corners.png', corners, tracks,
+                                  'Jerk-limited cycle: the tool at its corners, through them and rounded'))
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
     files.append(mcap_path)
     decoded = _check_mcap(mcap_path)
