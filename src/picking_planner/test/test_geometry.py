@@ -122,6 +122,19 @@ def test_cartesian_path_orientations_are_scipys_slerp_between_its_keys(k, seed, 
     assert np.abs(path.orientations(t).as_matrix() - expected).max() < 1e-12
 
 
+@pytest.mark.parametrize('angle, held', [(0.0, True), (1e-13, True), (1e-9, False)])
+def test_key_orientations_equal_to_rounding_are_held_and_any_turn_beyond_is_slerped(angle, held):
+    # A line whose tool keeps its orientation, its start pose from FK: nothing to slerp at every sample.
+    R0 = Rotation.from_euler('xyz', [0.3, -0.2, 1.1])
+    R1 = R0 * Rotation.from_rotvec([0.0, 0.0, angle])
+    path = geometry.CartesianPath.timed(geometry.Line((0, 0, 0), (0, 0, 0.06)), 0.4,
+                                        orientations=np.stack([R0.as_matrix(), R1.as_matrix()]))
+    t = np.linspace(0.0, 0.4, 41)
+    expected = Slerp([0.0, 1.0], Rotation.concatenate([R0, R1]))(path.profile.sample(t)[0][:, 0].clip(0, 1))
+    assert (path._fixed is not None) == held
+    assert np.abs(path.poses(t)[:, :3, :3] - expected.as_matrix()).max() < 1e-12
+
+
 def test_cartesian_path_refuses_orientation_matrices_that_are_not_rotations():
     line = geometry.Line((0, 0, 0), (1, 0, 0))
     mirror = np.diag([1.0, 1.0, -1.0])

@@ -17,6 +17,9 @@ from .. import trajectory
 from ..trajectory._checks import as_duration
 
 PROFILES = ('cubic', 'quintic', 'lspb', 'optimal')
+#: Key orientations whose rotation matrices agree to this (about as many radians) are one
+#: orientation, held along the path.
+SAME_ORIENTATION = 1e-12
 #: Progress limits (velocity, acceleration, jerk, in 1/s^k) whose time-optimal profile is the
 #: shape of ``optimal`` when no limits are given: jerk-bound, bang-bang jerk (the fastest shape
 #: for a given peak jerk, 0.81 of a quintic's time).
@@ -153,13 +156,16 @@ class CartesianPath:
         if orientations is not None:
             matrices = _key_matrices(orientations)
             k = len(matrices)
-            if k == 1:
-                self._fixed = matrices[0]
-            else:
+            if k > 1:
                 keys = np.linspace(0.0, 1.0, k) if keys is None else np.asarray(keys, float)
                 if keys.shape != (k,) or not np.all(np.isfinite(keys)) \
                         or np.any(keys[1:] <= keys[:-1]) or keys[0] != 0.0 or keys[-1] != 1.0:
                     raise ValueError('orientation keys must increase strictly from 0 to 1, one per orientation')
+            # Keys that agree to rounding (a line whose tool keeps its orientation, its start
+            # pose from FK) hold the orientation: nothing to slerp at every sample.
+            if k == 1 or np.abs(matrices[1:] - matrices[0]).max() <= SAME_ORIENTATION:
+                self._fixed = matrices[0]
+            else:
                 self._slerp = _Slerp(keys, matrices)
 
     @classmethod
