@@ -76,11 +76,18 @@ class Process:
             self.proc.send_signal(sig)
 
     def _reap(self, deadline):
-        """Wait until ``deadline`` (monotonic s), then kill; the exit code, None if killed."""
+        """Wait until ``deadline`` (monotonic s), then kill; the exit code, None if killed.
+        A node still running is first asked for its threads' stacks (SIGUSR1: the nodes'
+        faulthandler writes them to the log), so that a failing test shows where it hung."""
         killed = False
         try:
             self.proc.wait(max(deadline - time.monotonic(), 0.0))
         except subprocess.TimeoutExpired:
+            self.proc.send_signal(signal.SIGUSR1)
+            try:
+                self.proc.wait(1.0)
+            except subprocess.TimeoutExpired:
+                pass
             self.proc.kill()
             self.proc.wait()
             killed = True

@@ -140,3 +140,19 @@ def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ah
         assert stamps == sorted(stamps) and len(set(stamps)) == 3
         time.sleep(0.5)
         assert len(plans) == 3                                   # not planned a fourth time
+
+
+def test_a_node_asked_with_sigusr1_writes_every_threads_stack_and_runs_on(tmp_path):
+    """`kill -USR1 <pid>`, for a node that will not stop: it writes where each of its threads is (the
+    controller: its executor and its loop thread) to its log, and goes on running; the test harness
+    does so before it kills a node that did not exit in time."""
+    with running_stack('/sys8', tmp_path) as (stack, client):
+        stack.controller.proc.send_signal(signal.SIGUSR1)
+        client.wait_for(lambda: 'most recent call first' in stack.controller.output(), 5.0, 'the stack dump')
+        time.sleep(0.5)
+        dump = stack.controller.output()
+        assert len(re.findall(r'^(?:Current thread|Thread) 0x[0-9a-f]+', dump, re.M)) >= 2, dump[-3000:]
+        assert 'run_node' in dump                   # the main thread, spinning the executor
+        mark = client.mark()
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))          # and the stack works on
+        assert client.mark()['states'] > mark['states']

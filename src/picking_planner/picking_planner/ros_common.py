@@ -5,6 +5,7 @@ This is ROS glue (it imports rclpy), kept out of the pure core.
 
 from __future__ import annotations
 
+import faulthandler
 import functools
 import gc
 import math
@@ -50,6 +51,12 @@ def run_node(make_node, args=None):
     sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    # A node that does not stop: `kill -USR1 <pid>` writes every thread's Python stack to
+    # stderr (from C, even while a thread holds the GIL or waits in the middleware), and a
+    # crash writes its stack too.
+    faulthandler.enable()
+    if hasattr(signal, 'SIGUSR1'):
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
     node = executor = None
     try:
         # Everything loaded so far lives as long as the process: keep it out of the
