@@ -320,7 +320,8 @@ def run(quick=False, rows=(3, 4, 6)):
             fewer = f' (but N = {", ".join(map(str, missed))} missed it)' if missed else ''
             out.append(['6', f'arms side by side at {rate:g} Hz (simulator + controller + planner each, '
                              'every loop at its own phase)',
-                        f'{best} arm(s) meet row 4{fewer}', '; '.join(seen), '4 arms at 1 kHz' if rate == 1000.0 else '—',
+                        f'{best} arm(s) meet row 4{fewer}', '; '.join(seen),
+                        '4 arms at 1 kHz' if rate == 1000.0 else '—',
                         ('met' if best >= 4 else 'missed') if rate == 1000.0 else '—'])
             print('  ' + ' | '.join(out[-1]), flush=True)
     return out

@@ -40,7 +40,9 @@ def _table(header, rows):
 
 #: compare_methods' labels of the jerk-limited cycle through its corners and with them rounded.
 THROUGH_CORNERS = 'optimal, jerk-limited, P1, P3, P4 passed at speed'
-ROUNDED = 'the same, corners rounded (blend_radius 2 cm)'
+#: m, the blend radius of the rounded cycle.
+ROUND_RADIUS = 0.02
+ROUNDED = f'the same, corners rounded (blend_radius {100 * ROUND_RADIUS:g} cm)'
 
 
 def compare_methods(arm, planner_params, apple_T):
@@ -64,7 +66,7 @@ def compare_methods(arm, planner_params, apple_T):
             (THROUGH_CORNERS, jerk_limited,
              dict(approach_method='optimal', transfer_method='optimal', blend=True)),
             (ROUNDED, jerk_limited,
-             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02))):
+             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=ROUND_RADIUS))):
         planner = Planner(arm, PlannerSettings(**{**settings.__dict__, **changes}))
         plan = PickCycle(planner, PickSettings(**{**pick.__dict__, **pick_changes}).validate(arm)).plan(
             (home, z, z), apple_T)
@@ -186,7 +188,8 @@ def analyse_and_report(rec, events, config, out, quick=False):
     if compared:
         corners = pick_corners(arm, compared[THROUGH_CORNERS])
         tracks = {label: {name: corner_path(arm, compared[key], name) for name, _, _ in corners}
-                  for label, key in (('through the corners', THROUGH_CORNERS), ('rounded, blend_radius 2 cm', ROUNDED))}
+                  for label, key in (('through the corners', THROUGH_CORNERS),
+                                                   (f'rounded, blend_radius {100 * ROUND_RADIUS:g} cm', ROUNDED))}
         files.append(plot_corners(out / 'corners.png', corners, tracks,
                                   'Jerk-limited cycle: the tool at its corners, through them and rounded'))
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
