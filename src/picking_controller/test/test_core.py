@@ -333,3 +333,29 @@ def test_a_lead_in_too_short_for_the_acceleration_limit_is_limited_and_named_as_
     assert c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0).level == 'OK'
     report = _the_one_limited_acceleration_report(c, until=1.1)
     assert "lead-in from the reference to the trajectory's first point" in report.message
+
+
+def test_running_a_trajectory_of_many_points_never_imports_numba():
+    """The planner's compiled samplers are the planner's: a controller that loads, checks and
+    runs a trajectory of 40 points (its spline sampled at hundreds of times) must not stall its
+    loop for numba's import (a second or more on a cold cache)."""
+    import subprocess
+    import sys
+    script = '''
+import sys
+import numpy as np
+from picking_controller.core import ControllerCore, Tolerances
+c = ControllerCore(['a', 'b'], [-3, -3], [3, 3], [2, 2], [10, 10], Tolerances())
+c.on_state([0.0, 0.0], [0.0, 0.0], 0.0, now=0.0)
+times = np.linspace(0.1, 4.0, 40)
+pos = np.stack([0.5 * np.sin(times), 0.3 * (1.0 - np.cos(times))], axis=1)
+event = c.load(['a', 'b'], times, pos, [], [], 0.0, now=0.0)
+assert event.level == 'OK', event.message
+for t in np.linspace(0.0, 4.5, 451):
+    c.reference(t)
+    c.on_state(c.reference(t)[0], None, t, now=t)
+print('numba' in sys.modules)
+'''
+    out = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == 'False'

@@ -41,11 +41,8 @@ DEFAULT_JERK_PER_ACCEL = 10.0
 
 #: Via-point speeds tried by the jerk-limited via timing, times the neighbouring chords' mean speed.
 VIA_SPEEDS = (1.0, 1.5, 2.0)
-#: A Cartesian path whose check on a fine grid finds a hair beyond a limit (between the
-#: samples its peaks were measured at) is stretched by this.
-STRETCH_MARGIN = 1.05
 #: A line or arc slowed to the joint limits is slowed this much more: its peaks were measured
-#: between its IK samples (three times as densely), and may lie a hair beyond them.
+#: at points (see paths.CHECK_STEP), and may lie a hair beyond them between.
 STRETCH_TIGHT = 1.001
 #: Plans use at most this fraction of the scaled limits, so that the controller's spline
 #: through the 10 ms points (which can overshoot the plan by a hair) never crosses a limit.
@@ -214,6 +211,7 @@ class Planner:
     def __init__(self, arm, settings=PlannerSettings()):
         self.arm = arm
         self.settings = settings.validate()
+        trajectory.use_compiled_sampling()        # a plan samples its splines many times
 
     def with_settings(self, **changes):
         return Planner(self.arm, replace(self.settings, **changes))
@@ -446,22 +444,23 @@ class Planner:
         # Slowed down by k, the tool passes the same poses, so the joints pass the same
         # configurations: the joint path is this one stretched in time, its speeds divided by
         # k, accelerations by k^2, jerks by k^3 (the spline through the IK samples stretches
-        # with them). The IK is solved once; its samples end up k * sample_period apart.
+        # with them). The IK is solved once; its samples end up k * sample_period apart, and
+        # the points the conversion checked are checked again, stretched the same way.
+        t_check, q_check, qd_check, qdd_check = jp.checked
+        stretch = 1.0
         for _ in range(6):
             if over <= 1.0:
-                t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
-                try:
-                    check_joint_limits(self.arm, t, *traj.sample(t))
-                    return traj, path
-                except Unreachable:
-                    if s.duration:
-                        raise
-                    over = STRETCH_MARGIN        # between the samples a hair beyond a limit: stretch a little
+                # The peaks were taken at these points, within the planner's (scaled) limits: what
+                # can still fail is a position limit, which no stretch mends.
+                check_joint_limits(self.arm, t_check * stretch, q_check, qd_check / stretch,
+                                   qdd_check / stretch ** 2)
+                return traj, path
             if s.duration:
                 raise Unreachable(f'the path needs {over:.2f} times the allowed joint speed in the '
                                   f'fixed duration {s.duration} s')
             k = over * STRETCH_TIGHT
             traj, path = traj.stretched(k), path.stretched(k)
+            stretch *= k
             over = over / k
         raise Unreachable('could not time the Cartesian path within the joint limits')
 

@@ -275,6 +275,38 @@ def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(
             np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
 
 
+@pytest.mark.parametrize('make', [
+    lambda: trajectory.quintic_via(np.random.default_rng(3).uniform(-1.0, 1.0, (41, 6)), np.full(40, 0.01)),
+    lambda: trajectory.via_lspb([[0.0, 1.0], [0.5, -1.0], [2.0, 0.0], [1.0, 1.0]], [1.0, 0.5, 2.0], 40.0),
+    lambda: trajectory.concatenate([trajectory.cubic([0.0], [1.0], 1.0), trajectory.hold([1.0], 0.25),
+                                    trajectory.quintic([1.0], [-0.5], 0.5)]).shifted(2.0),
+])
+def test_short_samplings_of_many_segments_are_the_same_compiled_or_with_numpy(make, monkeypatch):
+    """The compiled sampler of many segments and numpy give the same q, qd and qdd: times in
+    order or not, at the breaks (the segment that ends there), before the start and after the
+    end (held, at rest)."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    traj = make()
+    b = traj.breaks
+    t = np.linspace(b[0] - 0.3, b[-1] + 0.3, 777)
+    times = (t, np.random.default_rng(5).permutation(t), b, b[::-1], np.array([b[-1] + 1.0]))
+    assert trajectory.use_compiled_sampling() and piecewise._pieces_kernel is not None
+    compiled = [traj.sample(x) for x in times]
+    monkeypatch.setattr(piecewise, '_pieces_kernel', None)
+    with_numpy = [traj.sample(x) for x in times]
+    for one, other in zip(compiled, with_numpy):
+        for got, want in zip(one, other):
+            # Horner's scheme against a product with the powers: the same to rounding of the
+            # largest term (a spline's accelerations near 1e4, where the true one is 0 at the end).
+            np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13 * max(1.0, np.abs(want).max()))
+    q, qd, qdd = compiled[0]
+    outside = (t < b[0]) | (t > b[-1])
+    assert outside.sum() > 100 and not qd[outside].any() and not qdd[outside].any()
+    end = traj.end_state()
+    np.testing.assert_allclose(q[-1], end[0], atol=1e-12)
+
+
 def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     """Without numba: silently None. numba failing (no writable cache directory, say): None and a
     RuntimeWarning that says what did not load, why, and what answers instead."""
@@ -295,6 +327,11 @@ def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     with pytest.warns(RuntimeWarning, match=r'the compiled sampler did not load \(OSError: no writable cache '
                                             r'directory\); long samplings run with numpy'):
         assert piecewise._compiled_sampler.__wrapped__() is None
+    monkeypatch.setattr(piecewise, '_pieces_kernel', None)
+    with pytest.warns(RuntimeWarning, match=r'the compiled sampler did not load \(OSError: no writable cache '
+                                            r'directory\); samplings run with numpy'):
+        assert trajectory.use_compiled_sampling() is False
+    assert piecewise._pieces_kernel is None
 
 
 def test_concatenate_composes_segments_and_refuses_a_gap():

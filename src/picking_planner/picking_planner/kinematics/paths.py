@@ -17,6 +17,10 @@ from scipy.spatial.transform import Rotation
 from .. import trajectory
 from .errors import Unreachable
 
+#: The joint spline between two IK samples is checked (the tool's deviation from the path, the
+#: joints' peaks and limits) at least this often, s, and at least at the quarters of each interval.
+CHECK_STEP = 0.0025
+
 
 def pose_matrix(position, quaternion=(0.0, 0.0, 0.0, 1.0)):
     """4x4 pose from a position (m) and a quaternion (x, y, z, w), normalised.
@@ -55,6 +59,9 @@ class JointPath:
         Largest |qd| and |qdd| along the trajectory.
     min_singular_value : float
         Smallest singular value of the Jacobian met along the path.
+    checked : tuple of ndarray
+        ``(t, q, qd, qdd)``: the trajectory at the times the deviation and the peaks were
+        taken (the samples and points between them, at most :data:`CHECK_STEP` apart).
     """
 
     t: np.ndarray
@@ -64,6 +71,7 @@ class JointPath:
     peak_velocity: np.ndarray
     peak_acceleration: np.ndarray
     min_singular_value: float
+    checked: tuple = ()
 
 
 def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_threshold=1e-3,
@@ -99,10 +107,15 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f'dt must be a positive number of seconds, got {dt}')
     n = max(int(np.ceil(path.duration / dt - 1e-9)), 1) + 1
-    t = np.linspace(0.0, path.duration, n)
-    poses = path.poses(t)
+    # The samples, and the points between them where the spline is not pinned by IK: one
+    # sampling of the path for both.
+    between = max(4, int(np.ceil(dt / CHECK_STEP - 1e-9)))
+    t_check = np.linspace(0.0, path.duration, (n - 1) * between + 1)
+    t = t_check[::between]
+    path_poses = path.poses(t_check)
     if not path.oriented:
-        poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
+        path_poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
+    poses = path_poses[::between]
     q = _batched(arm, poses, arm.check_joints(seed, 'seed'), max_joint_step)
     if q is None:
         q = _sequential(arm, poses, t, arm.check_joints(seed, 'seed'), max_joint_step)
@@ -114,15 +127,13 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
                           f'smallest singular value is {sigma[worst]:.2e} (threshold {singular_threshold})')
     traj = (trajectory.quintic_via(q, np.diff(t), free_ends=free_ends) if n > 2
             else trajectory.quintic(q[0], q[-1], path.duration))
-    # Deviation between samples, where the spline is not pinned by IK.
-    t_mid = np.sort(np.concatenate([t, 0.5 * (t[1:] + t[:-1]), 0.25 * t[1:] + 0.75 * t[:-1]]))
-    q_mid, qd, qdd = traj.sample(t_mid)
-    tool = arm.fk(q_mid)[:, :3, 3]
-    deviation = float(np.linalg.norm(tool - path.sample(t_mid)[0], axis=1).max())
+    q_check, qd, qdd = traj.sample(t_check)
+    tool = arm.fk(q_check)[:, :3, 3]
+    deviation = float(np.linalg.norm(tool - path_poses[:, :3, 3], axis=1).max())
     peak_v, peak_a = np.abs(qd).max(axis=0), np.abs(qdd).max(axis=0)
     if check_limits:
-        check_joint_limits(arm, t_mid, q_mid, qd, qdd)
-    return JointPath(t, q, traj, deviation, peak_v, peak_a, float(sigma[worst]))
+        check_joint_limits(arm, t_check, q_check, qd, qdd)
+    return JointPath(t, q, traj, deviation, peak_v, peak_a, float(sigma[worst]), (t_check, q_check, qd, qdd))
 
 
 def _batched(arm, poses, seed, max_joint_step):

@@ -1,4 +1,6 @@
-"""Long samplings of a synchronised move, compiled: one pass that writes q, qd and qdd.
+"""Samplings compiled: long ones of a synchronised move, and short ones of many segments.
+
+:func:`sample_shared`: one pass that writes q, qd and qdd of a synchronised move.
 
 Where every joint of a segment follows one profile, ``q_j(tau) = c0_j + w_j s(tau)``
 (see :func:`.piecewise._shared_profile`), a sampling of thousands of times costs
@@ -9,9 +11,16 @@ it. numpy needs a dozen passes over the samples for the same (the power basis, a
 small matrix product, the scaling and the start positions), and the small product
 alone cost more than the output's write.
 
-Imported by :mod:`.piecewise` only when a segment is sampled at thousands of
-times (never by a controller's per-tick sampling), so no process loads numba for
-short samplings. numba compiles it when this module is first imported and keeps
+:func:`sample_pieces`: a trajectory of many segments (a spline through a line's IK
+samples, a whole pick cycle) at up to a few thousand times, each sample's segment
+found by bisection and its q, qd and qdd evaluated by Horner's scheme, where numpy
+needs a dozen calls (search, clip, gather, power basis, a batched product of
+tiny matrices) of 5-20 µs each.
+
+Imported by :mod:`.piecewise` when a segment is sampled at thousands of times, and
+for short samplings only in a process that asked for them (a planner: see
+:func:`.piecewise.use_compiled_sampling`), so that a controller never stalls on
+numba's import. numba compiles it when this module is first imported and keeps
 the machine code in its cache beside this file, as for the kinematics' kernels;
 ``make`` builds that cache when it installs.
 """
@@ -69,3 +78,41 @@ def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
                 dst = out[r * n + j][col + a:col + a + m]
                 for k in range(m):
                     dst[k] = cj + wj * src[k]
+
+
+_ROWS = types.Array(types.float64, 3, 'C', readonly=True)
+PIECES = types.void(_IN, _ROWS, _IN, _OUT)
+
+
+@njit(PIECES, cache=True, nogil=True, error_model='numpy')
+def sample_pieces(breaks, rows, t, out):
+    """Write q, qd, qdd at times ``t`` (any order) into ``out`` (3n rows, q then qd then qdd,
+    one column per time).
+
+    ``rows`` (m, 3n, 6): each segment's power-basis coefficients of q, qd and qdd in its
+    local time. Segment ``k`` covers ``(breaks[k], breaks[k + 1]]`` (the first one its start
+    too); a time before the start holds the first point, after the end the last, at rest.
+    """
+    m = breaks.size - 1
+    rows_per_sample = out.shape[0]
+    n = rows_per_sample // 3
+    b0, b1 = breaks[0], breaks[m]
+    for i in range(t.size):
+        x = t[i]
+        held = x < b0 or x > b1
+        x = min(max(x, b0), b1)
+        lo, hi = 0, m - 1                 # the first k with x <= breaks[k + 1]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if x <= breaks[mid + 1]:
+                hi = mid
+            else:
+                lo = mid + 1
+        tau = x - breaks[lo]
+        c = rows[lo]
+        for r in range(n if held else rows_per_sample):
+            out[r, i] = ((((c[r, 5] * tau + c[r, 4]) * tau + c[r, 3]) * tau + c[r, 2]) * tau + c[r, 1]) * tau \
+                + c[r, 0]
+        if held:
+            for r in range(n, rows_per_sample):
+                out[r, i] = 0.0

@@ -61,7 +61,7 @@ class PiecewisePolynomial:
     rest, the way a controller holds its goal.
     """
 
-    __slots__ = ('_breaks', '_coeffs', '_stacked', '_end_state', '_break_list', '_rows', '_zeros')
+    __slots__ = ('_breaks', '_coeffs', '_end_state', '_break_list', '_rows', '_zeros')
 
     def __init__(self, breaks, coeffs):
         breaks = np.array(breaks, dtype=float)
@@ -84,10 +84,11 @@ class PiecewisePolynomial:
         padded.flags.writeable = False
         self._breaks = breaks
         self._coeffs = padded
-        self._stacked = _stack_derivatives(padded)
         self._end_state = None
-        self._break_list = breaks.tolist()
-        self._rows = np.ascontiguousarray(self._stacked.transpose(0, 2, 1))   # (m, 3n, 6)
+        # Built on first use (see _derivative_rows): planning composes many trajectories
+        # (stretched, concatenated) that are never sampled themselves.
+        self._break_list = None
+        self._rows = None
         self._zeros = np.zeros(coeffs.shape[2])
         self._zeros.flags.writeable = False
 
@@ -154,7 +155,11 @@ class PiecewisePolynomial:
         m = len(breaks) - 1
         outside_any = t_min < breaks[0] or t_max > breaks[-1]
         if m == 1:
-            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._rows[0], rows, outside_any, self._coeffs[0])
+            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
+                        self._coeffs[0])
+        elif _pieces_kernel is not None and t.size <= _GATHER_SAMPLES:
+            _pieces_kernel(breaks, self._derivative_rows(), np.ascontiguousarray(t), rows)
+            outside_any = False                            # the kernel held them at rest
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
             # batched product instead of a Python loop over the segments.
@@ -165,7 +170,7 @@ class PiecewisePolynomial:
             powers[:, 0] = 1.0
             for i in range(1, _N_COEFFS):
                 np.multiply(powers[:, i - 1], tau, out=powers[:, i])
-            rows = np.matmul(powers[:, None, :], self._stacked[k])[:, 0, :].T
+            rows = np.matmul(self._derivative_rows()[k], powers[:, :, None])[:, :, 0].T
         else:
             order, ts = None, t
             if t.size > 1 and (t[1:] < t[:-1]).any():
@@ -174,9 +179,10 @@ class PiecewisePolynomial:
             # Times before the start fall in the first segment, after the end in the last
             # (each block clips them to the trajectory's ends).
             edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
+            stacked = self._derivative_rows()
             for k in np.flatnonzero(edges[1:] > edges[:-1]):
                 lo, hi = edges[k], edges[k + 1]
-                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], self._rows[k], rows, outside_any,
+                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], stacked[k], rows, outside_any,
                             self._coeffs[k], col=lo)
             if order is not None:
                 unsorted = np.empty_like(rows)
@@ -211,7 +217,7 @@ class PiecewisePolynomial:
         controller calls at every tick (a bisection and one small product).
         Arrays held after the end are shared and read-only.
         """
-        b = self._break_list
+        b = self._break_list or self._breaks_as_list()
         n = self._coeffs.shape[2]
         if not t <= b[-1]:                       # after the end (NaN too): hold the end, at rest
             if self._end_state is None:
@@ -222,13 +228,14 @@ class PiecewisePolynomial:
                 return self._coeffs[0, 0].copy(), np.zeros(n), np.zeros(n)
             return self.start_state()
         k = bisect_left(b, t) - 1                # segment k covers (b[k], b[k+1]], as in sample()
-        return self._state_in(k, t - b[k])
+        return self._state_in(self._derivative_rows()[k], t - b[k])
 
-    def _state_in(self, k, tau):
-        """``(q, qd, qdd)`` at local time ``tau`` of segment ``k``: one small product."""
+    def _state_in(self, rows, tau):
+        """``(q, qd, qdd)`` at local time ``tau`` of the segment whose stacked coefficients are
+        ``rows`` (3n, 6): one small product."""
         n = self._coeffs.shape[2]
         tau2 = tau * tau
-        rows = self._rows[k] @ np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
+        rows = rows @ np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
         return rows[:n], rows[n:2 * n], rows[2 * n:]
 
     def start_state(self):
@@ -239,12 +246,27 @@ class PiecewisePolynomial:
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
-            b = self._break_list
-            q, qd, qdd = self._state_in(-1, b[-1] - b[-2])
+            b = self._break_list or self._breaks_as_list()
+            last = self._rows[-1] if self._rows is not None else _stack_derivatives(self._coeffs[-1:])[0]
+            q, qd, qdd = self._state_in(last, b[-1] - b[-2])
             for x in (q, qd, qdd):
                 x.flags.writeable = False
             self._end_state = (q, qd, qdd)
         return tuple(x.copy() for x in self._end_state)
+
+    def _derivative_rows(self):
+        """Each segment's coefficients of q, qd and qdd, shape (m, 3n, 6), read-only (built on
+        first use)."""
+        if self._rows is None:
+            rows = _stack_derivatives(self._coeffs)
+            rows.flags.writeable = False
+            self._rows = rows
+        return self._rows
+
+    def _breaks_as_list(self):
+        """The breaks as a list of floats, for bisection (built on first use)."""
+        self._break_list = self._breaks.tolist()
+        return self._break_list
 
     # -- composition ------------------------------------------------------
     def shifted(self, dt: float) -> 'PiecewisePolynomial':
@@ -271,12 +293,13 @@ class PiecewisePolynomial:
 
 
 def _stack_derivatives(coeffs):
-    """(m, 6, n) position coefficients -> (m, 6, 3n) for q, qd and qdd side by side."""
+    """(m, 6, n) position coefficients -> (m, 3n, 6): the rows of q, qd and qdd, one per joint each."""
     m, _, n = coeffs.shape
-    out = np.zeros((m, _N_COEFFS, 3 * n))
-    out[:, :, :n] = coeffs
-    np.multiply(coeffs[:, 1:], _D1[:, None], out=out[:, :-1, n:2 * n])
-    np.multiply(coeffs[:, 2:], _D2[:, None], out=out[:, :-2, 2 * n:])
+    out = np.zeros((m, 3 * n, _N_COEFFS))
+    c = coeffs.transpose(0, 2, 1)
+    out[:, :n] = c
+    np.multiply(c[:, :, 1:], _D1, out=out[:, n:2 * n, :-1])
+    np.multiply(c[:, :, 2:], _D2, out=out[:, 2 * n:, :-2])
     return out
 
 
@@ -338,7 +361,28 @@ def _shared_profile(coeffs):
     if vv > 0.0 and (np.abs(rest - np.outer(v, w)) > 1e-12 * size.max(axis=1, keepdims=True)).any():
         return None
     s = np.concatenate(([0.0], v))                         # the profile, from 0 at tau = 0
-    return np.ascontiguousarray(_stack_derivatives(s[None, :, None])[0].T), w, coeffs[0]
+    return _stack_derivatives(s[None, :, None])[0], w, coeffs[0]
+
+
+#: The compiled sampler of many segments (:func:`.fast_sample.sample_pieces`), once a process
+#: asked for it with :func:`use_compiled_sampling`; None: numpy samples them.
+_pieces_kernel = None
+
+
+def use_compiled_sampling():
+    """Sample trajectories of many segments (up to ``_GATHER_SAMPLES`` times at once) with a
+    compiled kernel from now on, in this process; True if it loaded (numba installed and able
+    to compile or cache it here), else numpy goes on sampling them.
+
+    A planner asks for it when it starts: every line's spline is sampled several times while
+    it is planned (0.2-0.4 of the time of a pick cycle's planning went to numpy's sampling).
+    A controller does not: its first trajectory would stall its loop for numba's import.
+    """
+    global _pieces_kernel
+    if _pieces_kernel is None:
+        fast_sample = load(f'{__package__}.fast_sample', 'the compiled sampler', 'samplings run with numpy')
+        _pieces_kernel = None if fast_sample is None else fast_sample.sample_pieces
+    return _pieces_kernel is not None
 
 
 @functools.cache
