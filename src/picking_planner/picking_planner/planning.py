@@ -211,7 +211,7 @@ class Planner:
     def __init__(self, arm, settings=PlannerSettings()):
         self.arm = arm
         self.settings = settings.validate()
-        trajectory.use_compiled_sampling()        # a plan samples its splines many times
+        trajectory.use_compiled_kernels()        # a plan samples its splines many times
 
     def with_settings(self, **changes):
         return Planner(self.arm, replace(self.settings, **changes))

@@ -291,9 +291,9 @@ def test_short_samplings_of_many_segments_are_the_same_compiled_or_with_numpy(ma
     b = traj.breaks
     t = np.linspace(b[0] - 0.3, b[-1] + 0.3, 777)
     times = (t, np.random.default_rng(5).permutation(t), b, b[::-1], np.array([b[-1] + 1.0]))
-    assert trajectory.use_compiled_sampling() and piecewise._pieces_kernel is not None
+    assert trajectory.use_compiled_kernels() and piecewise._kernels is not None
     compiled = [traj.sample(x) for x in times]
-    monkeypatch.setattr(piecewise, '_pieces_kernel', None)
+    monkeypatch.setattr(piecewise, '_kernels', None)
     with_numpy = [traj.sample(x) for x in times]
     for one, other in zip(compiled, with_numpy):
         for got, want in zip(one, other):
@@ -305,6 +305,30 @@ def test_short_samplings_of_many_segments_are_the_same_compiled_or_with_numpy(ma
     assert outside.sum() > 100 and not qd[outside].any() and not qdd[outside].any()
     end = traj.end_state()
     np.testing.assert_allclose(q[-1], end[0], atol=1e-12)
+
+
+@pytest.mark.parametrize('free', [(False, False), (True, False), (False, True), (True, True)])
+def test_the_spline_through_samples_is_the_same_compiled_or_with_numpy(free, monkeypatch):
+    """quintic_via without velocities (the spline through a path's IK samples): the compiled
+    kernel's segments are those of the cubic spline's tridiagonal solve and the Hermite
+    quintics with numpy, ends at rest or free, from 2 points (no free end possible) to 60."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    assert trajectory.use_compiled_kernels()
+    rng = np.random.default_rng(11)
+    for m in (1, 2, 3, 4, 7, 59):
+        points = rng.uniform(-2.0, 2.0, (m + 1, 6))
+        for durations in (np.full(m, 0.01), rng.uniform(0.05, 1.0, m)):
+            compiled = trajectory.quintic_via(points, durations, free_ends=free)
+            with monkeypatch.context() as patch:
+                patch.setattr(piecewise, '_kernels', None)
+                with_numpy = trajectory.quintic_via(points, durations, free_ends=free)
+            assert np.array_equal(compiled.breaks, with_numpy.breaks)
+            t = np.linspace(0.0, compiled.duration, 20 * m + 1)
+            for got, want in zip(compiled.sample(t), with_numpy.sample(t)):
+                # To rounding: solved another way, the coefficients of high powers (which
+                # cancel to ~0 where a free end's two cubics are one) differ in their last digits.
+                np.testing.assert_allclose(got, want, rtol=0, atol=1e-11 * np.abs(want).max())
 
 
 def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
@@ -327,11 +351,15 @@ def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     with pytest.warns(RuntimeWarning, match=r'the compiled sampler did not load \(OSError: no writable cache '
                                             r'directory\); long samplings run with numpy'):
         assert piecewise._compiled_sampler.__wrapped__() is None
-    monkeypatch.setattr(piecewise, '_pieces_kernel', None)
-    with pytest.warns(RuntimeWarning, match=r'the compiled sampler did not load \(OSError: no writable cache '
-                                            r'directory\); samplings run with numpy'):
-        assert trajectory.use_compiled_sampling() is False
-    assert piecewise._pieces_kernel is None
+    monkeypatch.setattr(piecewise, '_kernels', None)
+    monkeypatch.setattr(piecewise, '_kernels_tried', False)
+    with pytest.warns(RuntimeWarning, match=r'the compiled trajectory kernels did not load \(OSError: no writable '
+                                            r'cache directory\); numpy samples and builds the splines'):
+        assert trajectory.use_compiled_kernels() is False
+    assert piecewise._kernels is None
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')                 # asked again (another planner): tried once only
+        assert trajectory.use_compiled_kernels() is False
 
 
 def test_concatenate_composes_segments_and_refuses_a_gap():

@@ -10,7 +10,7 @@ extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
 """
 
 from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb, via_lspb_timing
-from .piecewise import PiecewisePolynomial, concatenate, hold, stack, use_compiled_sampling
+from .piecewise import PiecewisePolynomial, concatenate, hold, stack, use_compiled_kernels
 from .polynomial import brake, cubic, held_within_limits, hermite_coeffs, quintic
 from .optimal import time_optimal, time_optimal_stop
 from .via import quintic_via
@@ -19,5 +19,5 @@ __all__ = [
     'PiecewisePolynomial', 'Lspb', 'ViaLspb',
     'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'via_lspb_timing', 'quintic_via',
     'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake', 'held_within_limits', 'time_optimal',
-    'time_optimal_stop', 'use_compiled_sampling',
+    'time_optimal_stop', 'use_compiled_kernels',
 ]

@@ -1,4 +1,5 @@
-"""Samplings compiled: long ones of a synchronised move, and short ones of many segments.
+"""Trajectory kernels compiled: long samplings of a synchronised move, short ones of many
+segments, and the spline through a path's samples.
 
 :func:`sample_shared`: one pass that writes q, qd and qdd of a synchronised move.
 
@@ -17,10 +18,15 @@ found by bisection and its q, qd and qdd evaluated by Horner's scheme, where num
 needs a dozen calls (search, clip, gather, power basis, a batched product of
 tiny matrices) of 5-20 µs each.
 
+:func:`quintic_spline`: the C2 spline through a line's 50-odd IK samples (a
+tridiagonal solve and a quintic per segment), 24 µs for :func:`.via.quintic_via`
+against 91 µs with numpy, whose LAPACK call and dozen array expressions cost more
+than their arithmetic.
+
 Imported by :mod:`.piecewise` when a segment is sampled at thousands of times, and
-for short samplings only in a process that asked for them (a planner: see
-:func:`.piecewise.use_compiled_sampling`), so that a controller never stalls on
-numba's import. numba compiles it when this module is first imported and keeps
+for the rest only in a process that asked for them (a planner: see
+:func:`.piecewise.use_compiled_kernels`), so that a controller never stalls on
+numba's import. numba compiles them when this module is first imported and keeps
 the machine code in its cache beside this file, as for the kinematics' kernels;
 ``make`` builds that cache when it installs.
 """
@@ -116,3 +122,85 @@ def sample_pieces(breaks, rows, t, out):
         if held:
             for r in range(n, rows_per_sample):
                 out[r, i] = 0.0
+
+
+_POINTS = types.Array(types.float64, 2, 'C', readonly=True)
+_COEFFS = types.Array(types.float64, 3, 'C')
+SPLINE = types.void(_IN, _POINTS, types.boolean, types.boolean, _COEFFS)
+
+
+@njit(SPLINE, cache=True, nogil=True, error_model='numpy')
+def quintic_spline(h, points, free_start, free_end, out):
+    """The quintic segments of :func:`.via.quintic_via` without given velocities, into ``out``
+    (m, 6, n): through ``points`` (m + 1, n) at intervals ``h`` (m,) > 0, each knot's velocity
+    and acceleration those of the C2 cubic spline through the points (see
+    :func:`.via._cubic_spline`, whose equations these are), an end at rest or ``free``
+    (not-a-knot; m >= 2, and m >= 3 if both are).
+
+    The tridiagonal system is solved by elimination without pivoting (Thomas): every row is
+    diagonally dominant but a free end's, and eliminating that one with its neighbour leaves
+    the pivot h_0 + h_1 > 0.
+    """
+    m, n = h.size, points.shape[1]
+    diag, upper, lower = np.ones(m + 1), np.zeros(m), np.zeros(m)
+    for i in range(1, m):
+        diag[i] = 2.0 * (h[i - 1] + h[i])
+        upper[i] = h[i - 1]
+        lower[i - 1] = h[i]
+    if free_start:
+        diag[0], upper[0] = h[1], h[0] + h[1]
+    if free_end:
+        diag[m], lower[m - 1] = h[m - 2], h[m - 1] + h[m - 2]
+    vel = np.zeros((m + 1, n))
+    acc = np.zeros((m + 1, n))
+    slope = np.empty((m, n))
+    for i in range(m):
+        for j in range(n):
+            slope[i, j] = (points[i + 1, j] - points[i, j]) / h[i]
+    for i in range(1, m):                                    # the right-hand side, in vel
+        for j in range(n):
+            vel[i, j] = 3.0 * (h[i] * slope[i - 1, j] + h[i - 1] * slope[i, j])
+    if free_start:
+        for j in range(n):
+            vel[0, j] = ((3.0 * h[0] + 2.0 * h[1]) * h[1] * slope[0, j] + h[0] ** 2 * slope[1, j]) / (h[0] + h[1])
+    if free_end:
+        span = h[m - 1] + h[m - 2]
+        for j in range(n):
+            vel[m, j] = ((3.0 * h[m - 1] + 2.0 * h[m - 2]) * h[m - 2] * slope[m - 1, j]
+                         + h[m - 1] ** 2 * slope[m - 2, j]) / span
+    # Forward elimination, then back substitution, all joints at once.
+    ratio = np.empty(m)
+    ratio[0] = upper[0] / diag[0]
+    for j in range(n):
+        vel[0, j] /= diag[0]
+    for i in range(1, m + 1):
+        pivot = diag[i] - lower[i - 1] * ratio[i - 1]
+        if i < m:
+            ratio[i] = upper[i] / pivot
+        for j in range(n):
+            vel[i, j] = (vel[i, j] - lower[i - 1] * vel[i - 1, j]) / pivot
+    for i in range(m - 1, -1, -1):
+        for j in range(n):
+            vel[i, j] -= ratio[i] * vel[i + 1, j]
+    for i in range(m):
+        for j in range(n):
+            acc[i, j] = 2.0 * (3.0 * slope[i, j] - 2.0 * vel[i, j] - vel[i + 1, j]) / h[i]
+    if free_end:
+        for j in range(n):
+            acc[m, j] = 2.0 * (vel[m - 1, j] + 2.0 * vel[m, j] - 3.0 * slope[m - 1, j]) / h[m - 1]
+    if not free_start:
+        for j in range(n):
+            acc[0, j] = 0.0
+    # Each segment's quintic from its end states (polynomial.hermite_coeffs).
+    for i in range(m):
+        T = h[i]
+        T2 = T * T
+        for j in range(n):
+            q0, v0, a0 = points[i, j], vel[i, j], acc[i, j]
+            d, v1, a1 = points[i + 1, j] - q0, vel[i + 1, j], acc[i + 1, j]
+            out[i, 0, j] = q0
+            out[i, 1, j] = v0
+            out[i, 2, j] = 0.5 * a0
+            out[i, 3, j] = (20.0 * d - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T2 * T)
+            out[i, 4, j] = (-30.0 * d + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T2 * T2)
+            out[i, 5, j] = (12.0 * d - 6.0 * (v1 + v0) * T + (a1 - a0) * T2) / (2.0 * T2 * T2 * T)

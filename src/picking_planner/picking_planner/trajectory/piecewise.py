@@ -157,8 +157,8 @@ class PiecewisePolynomial:
         if m == 1:
             _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
                         self._coeffs[0])
-        elif _pieces_kernel is not None and t.size <= _GATHER_SAMPLES:
-            _pieces_kernel(breaks, self._derivative_rows(), np.ascontiguousarray(t), rows)
+        elif _kernels is not None and t.size <= _GATHER_SAMPLES:
+            _kernels.sample_pieces(breaks, self._derivative_rows(), np.ascontiguousarray(t), rows)
             outside_any = False                            # the kernel held them at rest
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
@@ -364,25 +364,33 @@ def _shared_profile(coeffs):
     return _stack_derivatives(s[None, :, None])[0], w, coeffs[0]
 
 
-#: The compiled sampler of many segments (:func:`.fast_sample.sample_pieces`), once a process
-#: asked for it with :func:`use_compiled_sampling`; None: numpy samples them.
-_pieces_kernel = None
+#: The compiled trajectory kernels (:mod:`.fast_sample`), once a process asked for them with
+#: :func:`use_compiled_kernels`; None: numpy samples many segments and builds splines.
+_kernels = None
+_kernels_tried = False
 
 
-def use_compiled_sampling():
-    """Sample trajectories of many segments (up to ``_GATHER_SAMPLES`` times at once) with a
-    compiled kernel from now on, in this process; True if it loaded (numba installed and able
-    to compile or cache it here), else numpy goes on sampling them.
+def use_compiled_kernels():
+    """From now on, in this process, sample trajectories of many segments (up to
+    ``_GATHER_SAMPLES`` times at once) and build the spline through a path's samples
+    (:func:`.quintic_via`) with compiled kernels; True if they loaded (numba installed and able
+    to compile or cache them here), else numpy goes on doing both.
 
-    A planner asks for it when it starts: every line's spline is sampled several times while
-    it is planned (0.2-0.4 of the time of a pick cycle's planning went to numpy's sampling).
-    A controller does not: its first trajectory would stall its loop for numba's import.
+    A planner asks for them when it starts: every line's spline is built once and sampled
+    several times while it is planned (together about a third of a pick cycle's planning with
+    numpy). A controller does not: its first trajectory would stall its loop for numba's import.
     """
-    global _pieces_kernel
-    if _pieces_kernel is None:
-        fast_sample = load(f'{__package__}.fast_sample', 'the compiled sampler', 'samplings run with numpy')
-        _pieces_kernel = None if fast_sample is None else fast_sample.sample_pieces
-    return _pieces_kernel is not None
+    global _kernels, _kernels_tried
+    if not _kernels_tried:
+        _kernels_tried = True
+        _kernels = load(f'{__package__}.fast_sample', 'the compiled trajectory kernels',
+                        'numpy samples and builds the splines')
+    return _kernels is not None
+
+
+def compiled_kernels():
+    """:mod:`.fast_sample` once this process asked for it (:func:`use_compiled_kernels`), else None."""
+    return _kernels
 
 
 @functools.cache

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from ._checks import as_durations, as_points
-from .piecewise import PiecewisePolynomial
+from .piecewise import PiecewisePolynomial, compiled_kernels
 from .polynomial import hermite_coeffs
 
 
@@ -57,6 +57,11 @@ def quintic_via(points, durations, velocities=None, accelerations=None, free_end
     times = np.concatenate(([0.0], np.cumsum(td)))
     if velocities is None:
         free = tuple(bool(f) and m > 1 for f in free_ends)     # not-a-knot needs 3 points or more
+        kernels = compiled_kernels()
+        if kernels is not None and accelerations is None and not (all(free) and m == 2):
+            c = np.empty((m, 6, points.shape[1]))
+            kernels.quintic_spline(np.ascontiguousarray(td), np.ascontiguousarray(points), *free, c)
+            return PiecewisePolynomial(times, c)
         vel, acc = _cubic_spline(td, points, free)
         for end, f in zip((0, -1), free):
             if not f:
