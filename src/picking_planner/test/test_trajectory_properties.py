@@ -276,13 +276,15 @@ def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(
 
 
 @pytest.mark.parametrize('make', [
+    lambda: trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0).shifted(0.3),       # one segment
     lambda: trajectory.quintic_via(np.random.default_rng(3).uniform(-1.0, 1.0, (41, 6)), np.full(40, 0.01)),
     lambda: trajectory.via_lspb([[0.0, 1.0], [0.5, -1.0], [2.0, 0.0], [1.0, 1.0]], [1.0, 0.5, 2.0], 40.0),
     lambda: trajectory.concatenate([trajectory.cubic([0.0], [1.0], 1.0), trajectory.hold([1.0], 0.25),
                                     trajectory.quintic([1.0], [-0.5], 0.5)]).shifted(2.0),
 ])
 def test_short_samplings_of_many_segments_are_the_same_compiled_or_with_numpy(make, monkeypatch):
-    """The compiled sampler of many segments and numpy give the same q, qd and qdd: times in
+    """The compiled sampler of short samplings (of one segment or many) and numpy give the same
+    q, qd and qdd: times in
     order or not, at the breaks (the segment that ends there), before the start and after the
     end (held, at rest)."""
     pytest.importorskip('numba')

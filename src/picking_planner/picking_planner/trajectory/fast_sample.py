@@ -13,7 +13,7 @@ small matrix product, the scaling and the start positions), and the small produc
 alone cost more than the output's write.
 
 :func:`sample_pieces`: a trajectory of many segments (a spline through a line's IK
-samples, a whole pick cycle) at up to a few thousand times, each sample's segment
+samples, a whole pick cycle) or of one at up to a few thousand times, each sample's segment
 found by bisection and its q, qd and qdd evaluated by Horner's scheme, where numpy
 needs a dozen calls (search, clip, gather, power basis, a batched product of
 tiny matrices) of 5-20 µs each.

@@ -154,12 +154,12 @@ class PiecewisePolynomial:
         rows = np.empty((3 * n, t.size))
         m = len(breaks) - 1
         outside_any = t_min < breaks[0] or t_max > breaks[-1]
-        if m == 1:
-            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
-                        self._coeffs[0])
-        elif _kernels is not None and t.size <= _GATHER_SAMPLES:
+        if _kernels is not None and t.size <= (_GATHER_SAMPLES if m > 1 else _SHARED_MIN):
             _kernels.sample_pieces(breaks, self._derivative_rows(), np.ascontiguousarray(t), rows)
             outside_any = False                            # the kernel held them at rest
+        elif m == 1:
+            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
+                        self._coeffs[0])
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
             # batched product instead of a Python loop over the segments.
@@ -371,9 +371,9 @@ _kernels_tried = False
 
 
 def use_compiled_kernels():
-    """From now on, in this process, sample trajectories of many segments (up to
-    ``_GATHER_SAMPLES`` times at once) and build the spline through a path's samples
-    (:func:`.quintic_via`) with compiled kernels; True if they loaded (numba installed and able
+    """From now on, in this process, sample trajectories (of many segments at up to
+    ``_GATHER_SAMPLES`` times at once, of one at fewer than ``_SHARED_MIN``) and build the
+    spline through a path's samples (:func:`.quintic_via`) with compiled kernels; True if they loaded (numba installed and able
     to compile or cache them here), else numpy goes on doing both.
 
     A planner asks for them when it starts: every line's spline is built once and sampled
