@@ -495,22 +495,27 @@ def concatenate(trajectories):
     if not trajectories:
         raise ValueError('concatenate needs at least one trajectory')
     n = trajectories[0].n_joints
-    breaks = [trajectories[0].breaks - trajectories[0].start_time]
-    coeffs = [trajectories[0].coeffs]
-    t_end = breaks[0][-1]
-    for i, (prev, nxt) in enumerate(zip(trajectories, trajectories[1:]), start=1):
+    for i, nxt in enumerate(trajectories[1:], start=1):
         if nxt.n_joints != n:
             raise ValueError(f'trajectory {i} has {nxt.n_joints} joints, the first has {n}')
-        for name, a, b in zip(('position', 'velocity'), prev.end_state(), nxt.start_state()):
-            scale = max(1.0, float(np.max(np.abs(a))), float(np.max(np.abs(b))))
-            if np.max(np.abs(a - b)) > 1e-9 * scale:
-                raise ValueError(
-                    f'trajectory {i} does not start where trajectory {i - 1} ends: '
-                    f'{name} {np.round(b, 9).tolist()} != {np.round(a, 9).tolist()}')
+    if len(trajectories) > 1:
+        # Every join at once: (joins, position/velocity, joints) at each side.
+        ends = np.array([tr.end_state()[:2] for tr in trajectories[:-1]])
+        starts = np.array([tr.start_state()[:2] for tr in trajectories[1:]])
+        scale = np.maximum(1.0, np.maximum(np.abs(ends).max(axis=2), np.abs(starts).max(axis=2)))
+        bad = np.abs(ends - starts).max(axis=2) > 1e-9 * scale
+        if bad.any():
+            i, which = (int(x) for x in np.argwhere(bad)[0])
+            raise ValueError(
+                f'trajectory {i + 1} does not start where trajectory {i} ends: '
+                f'{("position", "velocity")[which]} {np.round(starts[i, which], 9).tolist()} != '
+                f'{np.round(ends[i, which], 9).tolist()}')
+    breaks = [trajectories[0].breaks - trajectories[0].start_time]
+    t_end = breaks[0][-1]
+    for nxt in trajectories[1:]:
         breaks.append(nxt.breaks[1:] - nxt.start_time + t_end)
-        coeffs.append(nxt.coeffs)
         t_end = breaks[-1][-1]
-    return PiecewisePolynomial(np.concatenate(breaks), np.concatenate(coeffs))
+    return PiecewisePolynomial(np.concatenate(breaks), np.concatenate([tr.coeffs for tr in trajectories]))
 
 
 def stack(trajectories):
