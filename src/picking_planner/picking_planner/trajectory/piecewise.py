@@ -228,7 +228,8 @@ class PiecewisePolynomial:
                 return self._coeffs[0, 0].copy(), np.zeros(n), np.zeros(n)
             return self.start_state()
         k = bisect_left(b, t) - 1                # segment k covers (b[k], b[k+1]], as in sample()
-        return self._state_in(self._derivative_rows()[k], t - b[k])
+        rows = self._rows if self._rows is not None else self._derivative_rows()
+        return self._state_in(rows[k], t - b[k])
 
     def _state_in(self, rows, tau):
         """``(q, qd, qdd)`` at local time ``tau`` of the segment whose stacked coefficients are
