@@ -253,6 +253,46 @@ def test_joint_limits_are_checked_for_the_joints_named_gripper_included(arm):
         check_joint_limits(arm, t, q, zero, zero, names=some)
 
 
+def test_joint_limits_checked_compiled_name_what_numpy_names(arm, monkeypatch):
+    """The compiled scan (a planner's) and numpy find the same first sample beyond a limit, in
+    the same order (position, then velocity, then acceleration; by time, then by joint), and
+    refuse a non-finite value anywhere as numpy does, before any limit."""
+    pytest.importorskip('numba')
+    from picking_planner import trajectory
+    from picking_planner.kinematics.paths import check_joint_limits
+    from picking_planner.trajectory import piecewise
+    assert trajectory.use_compiled_kernels()
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 1.0, 120)
+    inside = rng.uniform(0.3, 0.7, (120, arm.dof))
+    q = arm.lower + inside * (arm.upper - arm.lower)
+    v, a = (inside - 0.5) * arm.max_velocity, (inside - 0.5) * arm.max_acceleration
+    limit = (arm.upper, arm.max_velocity, arm.max_acceleration)
+
+    def broken(*where):
+        """The samples with each ``(array, i, j, times its limit)`` set beyond it."""
+        arrays = [x.copy() for x in (q, v, a)]
+        for which, i, j, factor in where:
+            arrays[which][i, j] = factor * limit[which][j] + (0.01 if which == 0 else 0.0)
+        return tuple(arrays)
+    cases = [(q, v, a), broken((0, 70, 4, 1.0)), broken((1, 30, 2, 2.5)), broken((2, 90, 0, -2.5)),
+             broken((2, 10, 3, 2.0), (1, 30, 2, 2.5), (1, 30, 1, -2.5)),     # velocity first; joint 1 first
+             broken((0, 70, 4, 1.0), (2, 119, 5, np.nan))]                   # a NaN: a ValueError first
+    def outcome(arrays):
+        try:
+            check_joint_limits(arm, t, *[x.T.copy().T for x in arrays])      # strided, as samples are
+        except ValueError as exc:                 # Unreachable too
+            return type(exc).__name__, str(exc)
+        return 'ok', ''
+    compiled = [outcome(c) for c in cases]
+    monkeypatch.setattr(piecewise, '_kernels', None)
+    assert [outcome(c) for c in cases] == compiled
+    assert compiled[0] == ('ok', '') and compiled[-1][0] == 'ValueError'
+    assert [c[1].split(':')[0] for c in compiled[1:-1]] == [
+        'position limit broken', 'velocity limit broken', 'acceleration limit broken', 'velocity limit broken']
+    assert 'at t = 0.252 s' in compiled[2][1] and f'{arm.joint_names[1]} reaches' in compiled[4][1]
+
+
 PRISMATIC_URDF = """<robot name="slide">
   <link name="base_link"/><link name="a"/><link name="b"/><link name="c"/><link name="tool0"/>
   <joint name="turn" type="revolute"><parent link="base_link"/><child link="a"/>

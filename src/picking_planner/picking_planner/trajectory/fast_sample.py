@@ -33,6 +33,8 @@ the machine code in its cache beside this file, as for the kinematics' kernels;
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, types
 
@@ -204,3 +206,26 @@ def quintic_spline(h, points, free_start, free_end, out):
             out[i, 3, j] = (20.0 * d - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T2 * T)
             out[i, 4, j] = (-30.0 * d + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T2 * T2)
             out[i, 5, j] = (12.0 * d - 6.0 * (v1 + v0) * T + (a1 - a0) * T2) / (2.0 * T2 * T2 * T)
+
+
+_VALUES = types.Array(types.float64, 2, 'A', readonly=True)
+SCAN = types.Tuple((types.intp, types.boolean))(_VALUES, _IN, _IN)
+
+
+@njit(SCAN, cache=True, nogil=True, error_model='numpy')
+def scan_limits(values, lo, hi):
+    """``(first, nonfinite)`` for samples ``values`` (N, n) against per-joint bounds ``lo``,
+    ``hi`` (n,): the flat index ``i * n + j`` of the first finite value outside its bounds
+    (-1 if none), and whether any value is not finite (one pass, for
+    :func:`..kinematics.paths.check_joint_limits`)."""
+    first = -1
+    nonfinite = False
+    n = values.shape[1]
+    for i in range(values.shape[0]):
+        for j in range(n):
+            v = values[i, j]
+            if not math.isfinite(v):
+                nonfinite = True
+            elif first < 0 and (v < lo[j] or v > hi[j]):
+                first = i * n + j
+    return first, nonfinite
