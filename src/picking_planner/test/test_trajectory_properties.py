@@ -333,6 +333,29 @@ def test_the_spline_through_samples_is_the_same_compiled_or_with_numpy(free, mon
                 np.testing.assert_allclose(got, want, rtol=0, atol=1e-11 * np.abs(want).max())
 
 
+def test_joint_pieces_merged_compiled_are_those_merged_with_numpy(monkeypatch):
+    """LSPB moves, via-point LSPB and jerk-limited moves (each joint's pieces merged over the
+    union of their breaks): the compiled merge gives numpy's breaks and coefficients bit for bit
+    (the same synthetic division in the same order)."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    assert trajectory.use_compiled_kernels()
+    rng = np.random.default_rng(8)
+    makes = []
+    for _ in range(40):
+        m, n = int(rng.integers(1, 6)), int(rng.integers(1, 7))
+        points, durations = rng.uniform(-1.0, 1.0, (m + 1, n)), rng.uniform(0.4, 1.5, m)
+        makes.append(lambda p=points, d=durations: trajectory.via_lspb(p, d, 40.0))
+        makes.append(lambda p=points: trajectory.lspb(p[0], p[1], 1.5, 10.0))
+        makes.append(lambda p=points: trajectory.time_optimal(p[0], p[1], np.full(p.shape[1], 2.0),
+                                                              np.full(p.shape[1], 8.0), np.full(p.shape[1], 80.0)))
+    compiled = [make() for make in makes]
+    monkeypatch.setattr(piecewise, '_kernels', None)
+    for make, one in zip(makes, compiled):
+        other = make()
+        assert np.array_equal(one.breaks, other.breaks) and np.array_equal(one.coeffs, other.coeffs)
+
+
 def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     """Without numba: silently None. numba failing (no writable cache directory, say): None and a
     RuntimeWarning that says what did not load, why, and what answers instead."""

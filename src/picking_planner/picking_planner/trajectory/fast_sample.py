@@ -23,6 +23,10 @@ tridiagonal solve and a quintic per segment), 24 µs for :func:`.via.quintic_via
 against 91 µs with numpy, whose LAPACK call and dozen array expressions cost more
 than their arithmetic.
 
+:func:`scan_limits` (the joint-limit check of every planned move) and
+:func:`merge_pieces` (each joint's LSPB or jerk-limited phases merged over the union
+of their breaks) do in one pass what numpy does in a dozen small calls.
+
 Imported by :mod:`.piecewise` when a segment is sampled at thousands of times, and
 for the rest only in a process that asked for them (a planner: see
 :func:`.piecewise.use_compiled_kernels`), so that a controller never stalls on
@@ -229,3 +233,38 @@ def scan_limits(values, lo, hi):
             elif first < 0 and (v < lo[j] or v > hi[j]):
                 first = i * n + j
     return first, nonfinite
+
+
+_BREAKS = types.Array(types.float64, 2, 'C', readonly=True)
+_PIECES = types.Array(types.float64, 3, 'C', readonly=True)
+MERGE = types.void(_BREAKS, _PIECES, _IN, _COEFFS)
+
+
+@njit(MERGE, cache=True, nogil=True, error_model='numpy')
+def merge_pieces(joint_breaks, joint_coeffs, union, out):
+    """Each joint's polynomial on each interval of ``union`` into ``out`` (K, 6, n), for
+    :func:`.piecewise.merge_joint_pieces`: the joint's piece (P of them, bounds
+    ``joint_breaks`` (P + 1, n), coefficients ``joint_coeffs`` (P, 6, n)) that holds the
+    interval's midpoint, re-expanded about the interval's start by synthetic division, in
+    the order of :func:`.piecewise.taylor_shift` (zero leading coefficients skipped)."""
+    n_pieces, _, n = joint_coeffs.shape
+    c = np.empty(6)
+    for k in range(union.size - 1):
+        start = union[k]
+        mid = 0.5 * (union[k] + union[k + 1])
+        for j in range(n):
+            p = 0
+            for r in range(1, n_pieces):
+                if mid >= joint_breaks[r, j]:
+                    p += 1
+            dt = start - joint_breaks[p, j]
+            degree = 0
+            for i in range(6):
+                c[i] = joint_coeffs[p, i, j]
+                if c[i] != 0.0:
+                    degree = i
+            for i in range(degree):
+                for m in range(degree - 1, i - 1, -1):
+                    c[m] += c[m + 1] * dt
+            for i in range(6):
+                out[k, i, j] = c[i]

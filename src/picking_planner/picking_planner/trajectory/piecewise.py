@@ -463,6 +463,11 @@ def merge_joint_pieces(joint_breaks, joint_coeffs, rtol=1e-12):
     keep = np.concatenate(([True], np.diff(union) > rtol * max(span, 1.0)))
     union = union[keep]
     union[-1] = joint_breaks[-1].max()
+    if _kernels is not None and joint_coeffs.shape[1] == _N_COEFFS:
+        shifted = np.empty((union.size - 1, _N_COEFFS, n))
+        _kernels.merge_pieces(np.ascontiguousarray(joint_breaks), np.ascontiguousarray(joint_coeffs, dtype=float),
+                              union, shifted)
+        return union, shifted
     starts = union[:-1]
     mids = 0.5 * (union[:-1] + union[1:])
     # Piece index of each joint at each interval midpoint, vectorised over joints.
