@@ -14,9 +14,10 @@ alone cost more than the output's write.
 
 :func:`sample_pieces`: a trajectory of many segments (a spline through a line's IK
 samples, a whole pick cycle) or of one at up to a few thousand times, each sample's segment
-found by bisection and its q, qd and qdd evaluated by Horner's scheme, where numpy
-needs a dozen calls (search, clip, gather, power basis, a batched product of
-tiny matrices) of 5-20 µs each.
+found by bisection and its q, qd and qdd evaluated by Horner's scheme from the
+position coefficients (no derivative table to build first: most trajectories a
+planner makes are sampled once), where numpy needs a dozen calls (search, clip,
+gather, power basis, a batched product of tiny matrices) of 5-20 µs each.
 
 :func:`quintic_spline`: the C2 spline through a line's 50-odd IK samples (a
 tridiagonal solve and a quintic per segment), 24 µs for :func:`.via.quintic_via`
@@ -92,22 +93,22 @@ def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
                     dst[k] = cj + wj * src[k]
 
 
-_ROWS = types.Array(types.float64, 3, 'C', readonly=True)
-PIECES = types.void(_IN, _ROWS, _IN, _OUT)
+_SEGMENTS = types.Array(types.float64, 3, 'C', readonly=True)
+PIECES = types.void(_IN, _SEGMENTS, _IN, _OUT)
 
 
 @njit(PIECES, cache=True, nogil=True, error_model='numpy')
-def sample_pieces(breaks, rows, t, out):
+def sample_pieces(breaks, coeffs, t, out):
     """Write q, qd, qdd at times ``t`` (any order) into ``out`` (3n rows, q then qd then qdd,
     one column per time).
 
-    ``rows`` (m, 3n, 6): each segment's power-basis coefficients of q, qd and qdd in its
-    local time. Segment ``k`` covers ``(breaks[k], breaks[k + 1]]`` (the first one its start
-    too); a time before the start holds the first point, after the end the last, at rest.
+    ``coeffs`` (m, 6, n): each segment's power-basis coefficients of q in its local time
+    (those of qd and qdd follow, by Horner's scheme too). Segment ``k`` covers
+    ``(breaks[k], breaks[k + 1]]`` (the first one its start too); a time before the start
+    holds the first point, after the end the last, at rest.
     """
     m = breaks.size - 1
-    rows_per_sample = out.shape[0]
-    n = rows_per_sample // 3
+    n = coeffs.shape[2]
     b0, b1 = breaks[0], breaks[m]
     for i in range(t.size):
         x = t[i]
@@ -121,13 +122,15 @@ def sample_pieces(breaks, rows, t, out):
             else:
                 lo = mid + 1
         tau = x - breaks[lo]
-        c = rows[lo]
-        for r in range(n if held else rows_per_sample):
-            out[r, i] = ((((c[r, 5] * tau + c[r, 4]) * tau + c[r, 3]) * tau + c[r, 2]) * tau + c[r, 1]) * tau \
-                + c[r, 0]
-        if held:
-            for r in range(n, rows_per_sample):
-                out[r, i] = 0.0
+        c = coeffs[lo]
+        for j in range(n):
+            c0, c1, c2, c3, c4, c5 = c[0, j], c[1, j], c[2, j], c[3, j], c[4, j], c[5, j]
+            out[j, i] = ((((c5 * tau + c4) * tau + c3) * tau + c2) * tau + c1) * tau + c0
+            if held:
+                out[n + j, i] = out[2 * n + j, i] = 0.0
+            else:
+                out[n + j, i] = (((5.0 * c5 * tau + 4.0 * c4) * tau + 3.0 * c3) * tau + 2.0 * c2) * tau + c1
+                out[2 * n + j, i] = ((20.0 * c5 * tau + 12.0 * c4) * tau + 6.0 * c3) * tau + 2.0 * c2
 
 
 _POINTS = types.Array(types.float64, 2, 'C', readonly=True)

@@ -155,7 +155,7 @@ class PiecewisePolynomial:
         m = len(breaks) - 1
         outside_any = t_min < breaks[0] or t_max > breaks[-1]
         if _kernels is not None and t.size <= (_GATHER_SAMPLES if m > 1 else _SHARED_MIN):
-            _kernels.sample_pieces(breaks, self._derivative_rows(), np.ascontiguousarray(t), rows)
+            _kernels.sample_pieces(breaks, self._coeffs, np.ascontiguousarray(t), rows)
             outside_any = False                            # the kernel held them at rest
         elif m == 1:
             _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
