@@ -156,8 +156,10 @@ class CartesianPath:
         if orientations is not None:
             matrices = _key_matrices(orientations)
             k = len(matrices)
-            if k > 1:
-                keys = np.linspace(0.0, 1.0, k) if keys is None else np.asarray(keys, float)
+            if k > 1 and keys is None:
+                keys = np.linspace(0.0, 1.0, k)
+            elif k > 1:
+                keys = np.asarray(keys, float)
                 if keys.shape != (k,) or not np.all(np.isfinite(keys)) \
                         or np.any(keys[1:] <= keys[:-1]) or keys[0] != 0.0 or keys[-1] != 1.0:
                     raise ValueError('orientation keys must increase strictly from 0 to 1, one per orientation')

@@ -247,9 +247,13 @@ class PiecewisePolynomial:
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
-            b = self._break_list or self._breaks_as_list()
-            last = self._rows[-1] if self._rows is not None else _stack_derivatives(self._coeffs[-1:])[0]
-            q, qd, qdd = self._state_in(last, b[-1] - b[-2])
+            # The last segment at its end: three small products with the powers of its length
+            # (every join and every path asks; no derivative table is built for it).
+            tau = float(self._breaks[-1] - self._breaks[-2])
+            tau2 = tau * tau
+            powers = np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
+            c = self._coeffs[-1]
+            q, qd, qdd = powers @ c, (_D1 * powers[:-1]) @ c[1:], (_D2 * powers[:-2]) @ c[2:]
             for x in (q, qd, qdd):
                 x.flags.writeable = False
             self._end_state = (q, qd, qdd)
