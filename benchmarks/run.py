@@ -81,7 +81,8 @@ def main(argv=None):
         '# Benchmarks\n\n'
         f'Measured by `make bench` on {datetime.date.today()} in {minutes:.0f} min: {machine()}.\n'
         + _steal_line(total_steal, steal) +
-        f'In-process figures are medians (and p99) over {repeats} interleaved repeats (each round in a new '
+        f'In-process figures are medians (and p99) over {repeats} interleaved repeats ({10 * repeats} for row 2, '
+        'whose cycle takes milliseconds) (each round in a new '
         'random order); ratios are peer median / our median, measured side by side in the same run. No test '
         'asserts a time: these figures are measured here only.\n\n' + text + '\n\n' + NOTES)
     print(f'\nwrote {args.out}')
