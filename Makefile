@@ -25,7 +25,7 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -r requirements.txt
-	# Compile the IK, forward kinematics and long-sampling kernels into numba's cache now, not in the
+	# Compile the IK, forward kinematics and trajectory kernels into numba's cache now, not in the
 	# first node that plans.
 	$(BIN)/python -c 'from picking_planner.kinematics import ArmModel; ArmModel.from_urdf("config/picking_arm.urdf").load_ik()'
 	$(BIN)/python -c 'import picking_planner.trajectory.fast_sample'
