@@ -376,14 +376,16 @@ _kernels_tried = False
 
 
 def use_compiled_kernels():
-    """From now on, in this process, sample trajectories (of many segments at up to
-    ``_GATHER_SAMPLES`` times at once, of one at fewer than ``_SHARED_MIN``) and build the
-    spline through a path's samples (:func:`.quintic_via`) with compiled kernels; True if they loaded (numba installed and able
-    to compile or cache them here), else numpy goes on doing both.
+    """From now on, in this process, use the compiled kernels of :mod:`.fast_sample`: sample
+    trajectories (of many segments at up to ``_GATHER_SAMPLES`` times at once, of one at fewer
+    than ``_SHARED_MIN``), build the spline through a path's samples (:func:`.quintic_via`),
+    merge joints' pieces and check joint limits. True if they loaded (numba installed and able
+    to compile or cache them here), else numpy goes on doing all of it.
 
-    A planner asks for them when it starts: every line's spline is built once and sampled
-    several times while it is planned (together about a third of a pick cycle's planning with
-    numpy). A controller does not: its first trajectory would stall its loop for numba's import.
+    A planner asks for them when it starts: every line's spline is built once and sampled and
+    checked several times while it is planned (together about a third of a pick cycle's
+    planning with numpy). A controller does not: its first trajectory would stall its loop for
+    numba's import.
     """
     global _kernels, _kernels_tried
     if not _kernels_tried:
