@@ -260,12 +260,14 @@ def test_a_profile_the_joints_share_is_found_only_where_there_is_one():
 @pytest.mark.parametrize('beyond', [0.4, 0.0])
 def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(make, beyond, monkeypatch):
     """The compiled one-pass sampler (numba) and the numpy fallback write the same samples,
-    clipped or not, into a segment's part of the output or all of it."""
+    clipped or not, into a segment's part of the output or all of it, in one chunk or several."""
     pytest.importorskip('numba')
-    from picking_planner.trajectory import piecewise
+    from picking_planner.trajectory import fast_sample, piecewise
     traj = make()
-    t = np.linspace(traj.start_time - beyond, traj.end_time + beyond, 30_001)
-    times = (t, t[::-1], np.linspace(traj.start_time - beyond, traj.end_time + beyond, 60_002)[::2])  # strided
+    span = (traj.start_time - beyond, traj.end_time + beyond)
+    t = np.linspace(*span, 30_001)
+    times = (t, t[::-1], np.linspace(*span, 60_002)[::2],                      # strided
+             np.linspace(*span, 2 * fast_sample.CHUNK + 7))                     # three chunks
     assert piecewise._compiled_sampler() is not None
     compiled = [traj.sample(x) for x in times]
     monkeypatch.setattr(piecewise, '_compiled_sampler', lambda: None)

@@ -5,12 +5,13 @@ segments, and the spline through a path's samples.
 
 Where every joint of a segment follows one profile, ``q_j(tau) = c0_j + w_j s(tau)``
 (see :func:`.piecewise._shared_profile`), a sampling of thousands of times costs
-little more than writing its output (3 x n_joints doubles a sample): a cache-sized
-chunk of ``s``, ``s'`` and ``s''`` is evaluated by Horner's scheme, then scaled
-into each output row, every loop over contiguous memory so that LLVM vectorises
-it. numpy needs a dozen passes over the samples for the same (the power basis, a
-small matrix product, the scaling and the start positions), and the small product
-alone cost more than the output's write.
+little more than writing its output (3 x n_joints doubles a sample): ``s``, ``s'``
+and ``s''`` are evaluated by Horner's scheme (up to :data:`CHUNK` times at once), then
+scaled into each output row in turn, every loop over contiguous memory so that LLVM
+vectorises it and the output is written front to back. numpy needs a dozen passes
+over the samples for the same (the power basis, a small matrix product, the scaling
+and the start positions), and the small product alone cost more than the output's
+write.
 
 :func:`sample_pieces`: a trajectory of many segments (a spline through a line's IK
 samples, a whole pick cycle) or of one at up to a few thousand times, each sample's segment
@@ -54,8 +55,13 @@ _OUT = types.Array(types.float64, 2, 'C')
 SIGNATURE = types.void(_IN, types.float64, types.float64, types.float64, types.boolean,
                        _PROFILE, _IN, _IN, _OUT, types.intp)
 
-#: Samples per chunk: the chunk's profile (3 x 2048 doubles, 48 KiB) stays in cache.
-CHUNK = 2048
+#: Samples per chunk (the chunk's profile, 3 x 131 072 doubles, 3 MiB, stays in the L2 or L3
+#: cache). Each output row is written whole for a chunk, so that a sampling of up to this many
+#: times writes its output front to back, as a fill does. In chunks of 2 048, whose 18 rows
+#: took turns in 16 KiB pieces, benchmark row 1's quintic (100 000 x 6, timed in turn with
+#: ``jtraj``, which evicts it from the caches) took 3.0-3.2 times numpy's fill of the output;
+#: in one chunk 2.6-2.8 times (four pairs of runs, side by side).
+CHUNK = 1 << 17
 
 
 @njit(SIGNATURE, cache=True, nogil=True, error_model='numpy')
@@ -69,7 +75,7 @@ def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
     """
     n = w.size
     size = t.size
-    s = np.empty((3, CHUNK))
+    s = np.empty((3, min(CHUNK, size)))
     for a in range(0, size, CHUNK):
         m = min(CHUNK, size - a)
         times = t[a:a + m]
