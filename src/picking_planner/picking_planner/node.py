@@ -38,7 +38,7 @@ from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
 from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
                          stamp_key, status, status_values)
-from .sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active
+from .sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active, predict_reference
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
@@ -234,9 +234,10 @@ class PlannerNode(Node):
         its stamp lies on the plan active then, perhaps one that a newer plan,
         not started yet, will take over from), the exact state of the plan
         active at the start time, even across its end. Else the reference
-        extrapolated from its stamp with its velocity and acceleration (another
-        client's trajectory, a catch-up lead-in, a stalled controller), held
-        within the limits. Without a reference, the measured state, at rest.
+        extrapolated from its stamp with its velocity, its acceleration brought
+        to zero by the start (:func:`predict_reference`: another client's
+        trajectory, a catch-up lead-in, a stalled controller), held within the
+        limits. Without a reference, the measured state, at rest.
         ``reference`` and ``measured`` (from :meth:`measured`) are snapshots
         taken when the goal came. ``carry_from``: when the plan carries on from
         plans that start after the reference's stamp (the controller may not
@@ -253,8 +254,7 @@ class PlannerNode(Node):
                 return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
                              'reference', t_start, carry_start(self._sent, stamp, t_start), carries_on=True)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
-            return Start(feasible_start(self.arm, q + qd * dt + 0.5 * qdd * dt * dt, qd + qdd * dt, qdd),
-                         'reference', t_start)
+            return Start(feasible_start(self.arm, *predict_reference(q, qd, qdd, dt)), 'reference', t_start)
         if measured is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = measured[0]

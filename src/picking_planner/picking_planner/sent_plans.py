@@ -87,3 +87,21 @@ def carried_points(sent, t_from, t_until, period, names):
         return None
     q, qd, qdd = (np.array(x) for x in zip(*rows))
     return times - t_from, q, qd, qdd
+
+
+def predict_reference(q, qd, qdd, dt):
+    """Where a reference that is not on the plans sent is expected ``dt`` s later: its
+    acceleration brought linearly to zero over ``dt``. Returns ``(q, qd, qdd)``, the last zero.
+
+    Held constant instead (the Taylor expansion), the acceleration went on for ever under a
+    flood of goals while the reference was off the plans (after the controller stalled): each
+    plan started ``dt`` ahead with the reference's acceleration, the controller's lead-in to it
+    (a spline between the two states) kept that acceleration exactly, and the next goal, a
+    millisecond later, found it again. The arm sped up toward its limits until goals were
+    refused. Ended over ``dt``, the acceleration the lead-ins keep shrinks with each goal (by a
+    factor ``1 - 1 ms / dt`` at a goal a millisecond), and the speed it adds stays below
+    ``|qdd| dt``.
+    """
+    q, qd, qdd = (np.asarray(x, dtype=float) for x in (q, qd, qdd))
+    return q + qd * dt + qdd * (dt * dt / 3.0), qd + qdd * (0.5 * dt), np.zeros_like(qdd)
+

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, strategies as st
 
 from picking_planner import trajectory
-from picking_planner.sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active
+from picking_planner.sent_plans import (SentPlan, carried_points, carry_start, forget_before, plan_active,
+                                        predict_reference)
 
 ARM = ['a', 'b']
 
@@ -92,3 +93,32 @@ def test_plans_that_can_no_longer_run_are_forgotten():
     # A plan sent last that starts earliest runs from then on: all before it go.
     sent.append(SentPlan(sent[0].trajectory, 10.31, ARM))
     assert forget_before(sent, 10.4).start == 10.31 and len(sent) == 1
+
+
+def test_a_reference_off_the_plans_is_predicted_with_its_acceleration_ended_by_then():
+    """The state ``dt`` later of an acceleration brought linearly to zero: a cubic in time."""
+    q, qd, qdd = np.array([0.5, -1.0]), np.array([1.0, 0.0]), np.array([-3.0, 6.0])
+    dt = 0.1
+    got = predict_reference(q, qd, qdd, dt)
+    ramp = trajectory.PiecewisePolynomial([0.0, dt], [[q, qd, qdd / 2, -qdd / (6 * dt)]])
+    for x, want in zip(got, ramp.state_at(dt)):
+        assert x == pytest.approx(want, abs=1e-15)
+    assert np.all(got[2] == 0.0)
+    assert predict_reference(q, qd, qdd, 0.0)[0] == pytest.approx(q)
+
+
+@pytest.mark.parametrize('accel', [5.0, -12.0])
+def test_a_flood_of_goals_on_a_predicted_reference_does_not_run_away(accel):
+    """A goal every millisecond, each plan starting 0.1 s ahead at the state predicted there, and
+    the controller leading in from its reference to it (a quintic between the two states): the
+    speed the reference gains stays below |qdd| x 0.1 s and its acceleration dies out. (Predicted
+    with the acceleration held, the lead-in kept it, and after 2 s the reference moved at
+    |qdd| x 2 s.)"""
+    q, qd, qdd = np.zeros(1), np.zeros(1), np.array([accel])
+    for _ in range(2000):
+        start = predict_reference(q, qd, qdd, 0.1)
+        lead_in = trajectory.quintic(q, start[0], 0.1, qd, start[1], qdd, start[2])
+        q, qd, qdd = lead_in.state_at(0.001)
+    assert abs(qd[0]) <= abs(accel) * 0.1
+    assert abs(qdd[0]) < 1e-6 * abs(accel)
+
