@@ -104,4 +104,3 @@ def predict_reference(q, qd, qdd, dt):
     """
     q, qd, qdd = (np.asarray(x, dtype=float) for x in (q, qd, qdd))
     return q + qd * dt + qdd * (dt * dt / 3.0), qd + qdd * (0.5 * dt), np.zeros_like(qdd)
-

@@ -121,4 +121,3 @@ def test_a_flood_of_goals_on_a_predicted_reference_does_not_run_away(accel):
         q, qd, qdd = lead_in.state_at(0.001)
     assert abs(qd[0]) <= abs(accel) * 0.1
     assert abs(qdd[0]) < 1e-6 * abs(accel)
-
