@@ -333,6 +333,23 @@ def test_compiled_forward_kinematics_agree_with_numpy(fixture, request):
     assert len(kernels.frames.func.signatures) == len(kernels.min_singular_values.func.signatures) == 1
 
 
+def test_singular_values_in_lockstep_are_each_configurations_own(arm):
+    """The compiled kernel takes BLOCK Jacobians through Jacobi together: each configuration's
+    value is exactly (to the bit) the one it gets alone, whatever its neighbours, singular or
+    quick to converge, and across block borders."""
+    from picking_planner.kinematics import fast_fk
+    assert arm.load_fk()
+    rng = np.random.default_rng(11)
+    Q = rng.uniform(arm.lower, arm.upper, (2 * fast_fk.BLOCK + 7, arm.dof))
+    Q[::5, 4] = 0.0                                            # singular wrists among them
+    Q[3::10] = Q[1]                                            # the same configuration in other company
+    together = arm.min_singular_values(Q)
+    alone = np.array([arm.min_singular_values(q[None])[0] for q in Q])
+    assert np.array_equal(together, alone)
+    assert np.array_equal(together[3::10], np.full(len(Q[3::10]), together[1]))
+    assert together[::5].max() < 1e-7 < together[1::5].min()
+
+
 def test_forward_kinematics_without_numba_run_with_numpy(arm, monkeypatch):
     q = np.array([[0.4, 0.3, 1.1, 0.5, 0.8, -0.6], [0.0, 0.2, 1.6, 0.0, 0.0, 0.0]])
     compiled = arm.fk(q), arm.min_singular_values(q), arm.jacobian(q[0])
