@@ -17,6 +17,7 @@ so grasp and release reach every subscriber of ``joint_states`` with their times
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,6 +161,20 @@ def _toward(T_from, T_to, distance):
     return out
 
 
+@functools.lru_cache(maxsize=16)
+def _rpy_matrix(rpy):
+    """The rotation matrix of roll, pitch, yaw ``rpy`` (a tuple, rad; fixed axes x, y, z), read-only:
+    the place orientation is a setting, the same for every cycle (scipy takes tens of µs)."""
+    out = Rotation.from_euler('xyz', rpy).as_matrix()
+    out.flags.writeable = False
+    return out
+
+
+#: The gripper's turns about the vertical that the quickest place chooses from: 30 degree steps.
+_PLACE_TURNS = Rotation.from_euler('z', np.radians(np.arange(-180, 180, 30))[:, None]).as_matrix()
+_PLACE_TURNS.flags.writeable = False
+
+
 def _offset(T, local):
     """Pose ``T`` moved by ``local`` in its own frame."""
     out = T.copy()
@@ -183,7 +198,7 @@ class PickCycle:
         P3 = P2.copy()
         P3[2, 3] += s.lift_height
         P5 = np.eye(4)
-        P5[:3, :3] = Rotation.from_euler('xyz', s.place_orientation_rpy).as_matrix()
+        P5[:3, :3] = _rpy_matrix(tuple(s.place_orientation_rpy))
         P5[:3, 3] = s.box_position
         P4 = P5.copy()
         P4[2, 3] += s.box_drop_height
@@ -365,7 +380,7 @@ class PickCycle:
         """P4 and P5 turned about the vertical for the quickest transfer and return."""
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
         # Every turn at once: 12 candidates in 30 degree steps, one batched IK each for P4 and P5.
-        turns = Rotation.from_euler('z', np.radians(np.arange(-180, 180, 30))[:, None]).as_matrix()
+        turns = _PLACE_TURNS
         P4, P5 = np.repeat(poses['P4'][None], len(turns), 0), np.repeat(poses['P5'][None], len(turns), 0)
         P4[:, :3, :3] = turns @ poses['P4'][:3, :3]
         P5[:, :3, :3] = turns @ poses['P5'][:3, :3]
