@@ -572,10 +572,10 @@ class Planner:
                     # fit and its lines keep the scaled speed limit (its fastest speeds are its lines':
                     # the blends join them). A line ending in a blend from rest slows far more than
                     # its stretch near the shortest timing, hence small steps.
-                    _, vel = trajectory.via_lspb_timing(qs, durations, self._amax)
-                    if (np.abs(vel) > self._vmax * (1.0 + 1e-9)).any():
+                    timing = trajectory.via_lspb_timing(qs, durations, self._amax)
+                    if (np.abs(timing[1]) > self._vmax * (1.0 + 1e-9)).any():
                         raise ValueError('a line is faster than the scaled velocity limit')
-                    traj = trajectory.via_lspb(qs, durations, self._amax)
+                    traj = trajectory.via_lspb(qs, durations, self._amax, timing)
                 else:
                     # The spline through the points stretched k times: speeds / k, accelerations / k^2.
                     traj = trajectory.quintic_via(qs, durations)

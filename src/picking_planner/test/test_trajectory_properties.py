@@ -467,7 +467,8 @@ def test_quintic_via_free_ends_take_the_moving_samples_own_velocity_and_accelera
 @settings(deadline=None)
 def test_via_lspb_timing_is_the_trajectorys_without_building_it(path, accel):
     """The planner searches durations with the timing alone: the same blends and line
-    speeds as the trajectory, the same refusal, and no faster point than its lines."""
+    speeds as the trajectory, the same refusal, and no faster point than its lines; built
+    from that timing, the very same trajectory."""
     points, durations = path
     try:
         traj = trajectory.via_lspb(points, durations, accel)
@@ -477,5 +478,7 @@ def test_via_lspb_timing_is_the_trajectorys_without_building_it(path, accel):
         return
     blends, velocities = trajectory.via_lspb_timing(points, durations, accel)
     assert np.array_equal(blends, traj.blend_times) and np.array_equal(velocities, traj.segment_velocities)
+    again = trajectory.via_lspb(points, durations, accel, (blends, velocities))
+    assert np.array_equal(again.breaks, traj.breaks) and np.array_equal(again.coeffs, traj.coeffs)
     qd = traj.sample(np.linspace(0.0, traj.duration, 2001))[1]
     assert np.all(np.abs(qd).max(axis=0) <= np.abs(velocities).max(axis=0) * (1 + 1e-9) + 1e-12)

@@ -145,7 +145,7 @@ class ViaLspb(PiecewisePolynomial):
     __slots__ = ('via_times', 'blend_times', 'segment_velocities')
 
 
-def via_lspb(points, durations, accel):
+def via_lspb(points, durations, accel, timing=None):
     """Linear segments with parabolic blends through via points (Fig. 12).
 
     Craig's scheme: the path starts and ends at rest exactly at the first and
@@ -162,6 +162,10 @@ def via_lspb(points, durations, accel):
         Time between consecutive via points, s.
     accel : float or array_like, shape (n_joints,)
         Blend acceleration magnitude, unit/s^2.
+    timing : (ndarray, ndarray), optional
+        What :func:`via_lspb_timing` returned for these same points, durations
+        and accel, when a caller has it already (a search for a feasible
+        timing): not computed again.
 
     Returns
     -------
@@ -185,7 +189,7 @@ def via_lspb(points, durations, accel):
         out.blend_times = np.stack([single.blend_time, single.blend_time])
         out.segment_velocities = single.cruise_velocity[None, :]
         return out
-    tb, vel = _via_timing(points, td, a)
+    tb, vel = _via_timing(points, td, a) if timing is None else timing
     times = np.concatenate(([0.0], np.cumsum(td)))
     # Phase boundaries, per joint: blend_0, line_0, blend_1, line_1, ..., blend_m.
     bounds = np.empty((2 * m + 2, n))
@@ -252,21 +256,26 @@ def via_lspb_timing(points, durations, accel):
 def _via_timing(points, td, a):
     """Craig's blend times (m + 1, n) and line velocities (m, n) for m >= 2 segments."""
     m = points.shape[0] - 1
-    n = points.shape[1]
     dq = points[1:] - points[:-1]                                   # (m, n)
-    tb = np.zeros((m + 1, n))
     vel = dq / td[:, None]
-    for end, k in (('first', 0), ('last', m - 1)):
-        disc = td[k] ** 2 - 2.0 * np.abs(dq[k]) / a
-        if (disc < -_RTOL * td[k] ** 2).any():
-            j = int(np.argmin(disc))
-            raise ValueError(
-                f'accel {a[j]:.6g} is too small for the {end} segment of joint {j}: '
-                f'moving {dq[k, j]:.6g} in {td[k]:.6g} s needs at least '
-                f'2|dq|/duration^2 = {2.0 * abs(dq[k, j]) / td[k] ** 2:.6g}')
-        t_end = td[k] - np.sqrt(np.maximum(disc, 0.0))
-        tb[0 if k == 0 else m] = t_end
-        vel[k] = dq[k] / (td[k] - 0.5 * t_end)
+    # The first and the last segment together: each blends from (to) rest at its end point and
+    # runs on at the velocity that meets the next (previous) line at its via point.
+    ends = [0, m - 1]
+    span = td[ends][:, None]                                        # (2, 1)
+    moved = dq[ends]                                                # (2, n)
+    disc = span ** 2 - 2.0 * np.abs(moved) / a
+    short = disc < -_RTOL * span ** 2
+    if short.any():
+        k = 0 if short[0].any() else 1
+        j = int(np.argmin(disc[k]))
+        raise ValueError(
+            f'accel {a[j]:.6g} is too small for the {("first", "last")[k]} segment of joint {j}: '
+            f'moving {moved[k, j]:.6g} in {span[k, 0]:.6g} s needs at least '
+            f'2|dq|/duration^2 = {2.0 * abs(moved[k, j]) / span[k, 0] ** 2:.6g}')
+    blend = span - np.sqrt(np.maximum(disc, 0.0))
+    vel[ends] = moved / (span - 0.5 * blend)
+    tb = np.empty((m + 1, points.shape[1]))
+    tb[0], tb[m] = blend
     tb[1:m] = np.abs(vel[1:] - vel[:-1]) / a
     linear = td[:, None] - 0.5 * tb[:-1] - 0.5 * tb[1:]
     linear[0] -= 0.5 * tb[0]
