@@ -307,8 +307,8 @@ PRISMATIC_URDF = """<robot name="slide">
 
 @pytest.mark.parametrize('fixture', ['arm', 'arm3', 'slide'])
 def test_compiled_forward_kinematics_agree_with_numpy(fixture, request):
-    """Frames (so FK) and the Jacobian's smallest singular value, compiled, against the numpy
-    versions: 10 000 configurations, singular ones among them; no input type compiles anew."""
+    """Frames, the tool's alone (FK) and the Jacobian's smallest singular value, compiled, against
+    the numpy versions: 10 000 configurations, singular ones among them; no input type compiles anew."""
     model = (kinematics.ArmModel.from_urdf_string(PRISMATIC_URDF) if fixture == 'slide'
              else request.getfixturevalue(fixture))
     assert model.load_fk(), 'the compiled forward kinematics did not load (numba is a requirement)'
@@ -318,7 +318,9 @@ def test_compiled_forward_kinematics_agree_with_numpy(fixture, request):
     if model.dof == 6:
         Q[:1000, 4] = 0.0                                      # singular wrists
         Q[1000:2000, 2] = 0.0                                  # stretched elbows
-    assert model.joint_frames(Q) == pytest.approx(model._joint_frames_numpy(Q), rel=0.0, abs=1e-12)
+    reference = model._joint_frames_numpy(Q)
+    assert model.joint_frames(Q) == pytest.approx(reference, rel=0.0, abs=1e-12)
+    assert np.array_equal(model.fk(Q), model.joint_frames(Q)[:, -1])         # the tool's frame alone
     sigma = model.min_singular_values(Q)
     assert sigma == pytest.approx(model._min_singular_values_numpy(Q), rel=0.0, abs=1e-9)
     if model.dof == 6:
@@ -330,7 +332,8 @@ def test_compiled_forward_kinematics_agree_with_numpy(fixture, request):
                                             .reshape(np.shape(model.fk(q))), abs=1e-12)
         model.min_singular_values(q)
     kernels = model._fk_compiled
-    assert len(kernels.frames.func.signatures) == len(kernels.min_singular_values.func.signatures) == 1
+    assert all(len(kernel.func.signatures) == 1
+               for kernel in (kernels.frames, kernels.tools, kernels.min_singular_values))
 
 
 def test_singular_values_in_lockstep_are_each_configurations_own(arm):

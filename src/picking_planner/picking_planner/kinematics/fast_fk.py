@@ -1,12 +1,14 @@
 """The chain's forward kinematics and the Jacobian's smallest singular value, compiled.
 
-The fast path of :meth:`ArmModel.joint_frames` (and so of ``fk``) and of
+The fast path of :meth:`ArmModel.joint_frames`, of ``fk`` and of
 :meth:`ArmModel.min_singular_values`, the two kinematic checks that every
 Cartesian line or arc runs over its samples: the vectorised numpy versions
 cost about 40 small array operations per joint and call (tens of microseconds
-before any arithmetic), these a loop over configurations in machine code.
-numba compiles them when this module is first imported and keeps the machine
-code in its cache beside this file, as for :mod:`.fast_ik`.
+before any arithmetic), these loops in machine code. They take BLOCK
+configurations at a time, each product over the configurations innermost,
+which the compiler turns into vector instructions (several configurations per
+instruction). numba compiles them when this module is first imported and keeps
+the machine code in its cache beside this file, as for :mod:`.fast_ik`.
 
 The chain is packed in arrays (see :func:`pack`): each joint's fixed origin
 (4x4, from its parent), its unit axis, whether it is prismatic (1.0 or 0.0),
@@ -26,11 +28,15 @@ from numba import njit
 # writable, aligned, C-contiguous float64 arrays (see ArmModel.joint_frames).
 FRAMES = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
          'float64[:, :, :, ::1])'
-#: Configurations whose Jacobians min_singular_values takes through Jacobi together (their
-#: columns fit in the first-level cache).
-BLOCK = 64
+TOOL = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
+       'float64[:, :, ::1])'
 SINGULAR = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
            'int64, float64[::1])'
+
+
+#: Configurations that the kernels take together (their frames and Jacobians fit in the
+#: first-level cache).
+BLOCK = 64
 
 
 def pack(arm):
@@ -40,63 +46,91 @@ def pack(arm):
 
 
 class Bound:
-    """The kernels bound to one arm: ``frames(q, out)`` and ``min_singular_values(q, rows, out)``."""
+    """The kernels bound to one arm: ``frames(q, out)``, ``tools(q, out)`` and
+    ``min_singular_values(q, rows, out)``."""
 
     def __init__(self, arm):
         model = pack(arm)
         self.frames = functools.partial(frames, *model)
+        self.tools = functools.partial(tools, *model)
         self.min_singular_values = functools.partial(min_singular_values, *model)
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def _chain(origins, axes, prismatic, tool, q, out):
-    """Frames of every joint (after its motion) and of the tool for one configuration ``q``
-    into ``out`` (dof + 1, 4, 4).
+def _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs):
+    """Frames of every joint (after its motion) and of the tool for the ``width`` configurations
+    from ``q[first]`` into ``F`` (dof + 1, 3, 4, >= width): ``F[i, r, c, k]`` is row r, column c
+    of joint i's frame (i = dof: the tool's) in configuration ``first + k``; the last row of
+    every frame is 0 0 0 1. ``A`` (3, 4, >= width) and ``cs`` (2, >= width): scratch.
 
-    (Element by element: numba compiles array-slice assignments far more slowly.)
+    Each joint's frame is the one before it times the joint's fixed origin times its motion,
+    in the numpy version's order (the same rounding); the configurations are the innermost
+    loop of every product. (Element by element: numba compiles array-slice assignments far
+    more slowly.)
     """
-    dof = q.size
-    M = np.zeros((4, 4))                 # the joint's motion
-    tmp = np.empty((4, 4))
-    T = np.zeros((4, 4))
-    for r in range(4):
-        T[r, r] = M[r, r] = 1.0
+    dof = q.shape[1]
     for i in range(dof):
-        x, y, z = axes[i, 0], axes[i, 1], axes[i, 2]
-        if prismatic[i] != 0.0:
-            M[0, 0] = M[1, 1] = M[2, 2] = 1.0
-            M[0, 1] = M[0, 2] = M[1, 0] = M[1, 2] = M[2, 0] = M[2, 1] = 0.0
-            M[0, 3], M[1, 3], M[2, 3] = q[i] * x, q[i] * y, q[i] * z
+        O = origins[i]
+        if i == 0:                        # the base frame is the identity
+            for r in range(3):
+                for c in range(4):
+                    for k in range(width):
+                        A[r, c, k] = O[r, c]
         else:
-            c, s = math.cos(q[i]), math.sin(q[i])
+            _times(F[i - 1], O, width, A)
+        x, y, z = axes[i, 0], axes[i, 1], axes[i, 2]
+        T = F[i]
+        if prismatic[i] != 0.0:
+            for r in range(3):
+                for k in range(width):
+                    d = q[first + k, i]
+                    T[r, 0, k], T[r, 1, k], T[r, 2, k] = A[r, 0, k], A[r, 1, k], A[r, 2, k]
+                    T[r, 3, k] = A[r, 0, k] * (d * x) + A[r, 1, k] * (d * y) + A[r, 2, k] * (d * z) + A[r, 3, k]
+            continue
+        for k in range(width):            # the calls apart: the products below vectorise
+            cs[0, k] = math.cos(q[first + k, i])
+            cs[1, k] = math.sin(q[first + k, i])
+        for k in range(width):
+            c, s = cs[0, k], cs[1, k]
             C = 1.0 - c
-            M[0, 0], M[0, 1], M[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
-            M[1, 0], M[1, 1], M[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
-            M[2, 0], M[2, 1], M[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
-            M[0, 3] = M[1, 3] = M[2, 3] = 0.0
-        # T = (T @ origin) @ motion, in the numpy version's order (the same rounding).
-        _mul(T, origins[i], tmp)
-        _mul(tmp, M, T)
-        _copy(T, out[i])
-    _mul(T, tool, out[dof])
+            m00, m01, m02 = c + x * x * C, x * y * C - z * s, x * z * C + y * s
+            m10, m11, m12 = y * x * C + z * s, c + y * y * C, y * z * C - x * s
+            m20, m21, m22 = z * x * C - y * s, z * y * C + x * s, c + z * z * C
+            for r in range(3):
+                a0, a1, a2 = A[r, 0, k], A[r, 1, k], A[r, 2, k]
+                T[r, 0, k] = a0 * m00 + a1 * m10 + a2 * m20
+                T[r, 1, k] = a0 * m01 + a1 * m11 + a2 * m21
+                T[r, 2, k] = a0 * m02 + a1 * m12 + a2 * m22
+                T[r, 3, k] = A[r, 3, k]
+    _times(F[dof - 1], tool, width, F[dof])
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def _mul(A, B, out):
-    """out = A @ B for 4x4 transforms (their last rows 0 0 0 1)."""
+def _times(P, B, width, out):
+    """``out = P @ B`` for the ``width`` transforms of ``P`` (3, 4, >= width), laid out as in
+    :func:`_chain_block`, and one 4x4 transform ``B``."""
     for r in range(3):
-        a0, a1, a2, a3 = A[r, 0], A[r, 1], A[r, 2], A[r, 3]
         for c in range(4):
-            out[r, c] = a0 * B[0, c] + a1 * B[1, c] + a2 * B[2, c] + a3 * B[3, c]
+            b0, b1, b2, b3 = B[0, c], B[1, c], B[2, c], B[3, c]
+            for k in range(width):
+                out[r, c, k] = P[r, 0, k] * b0 + P[r, 1, k] * b1 + P[r, 2, k] * b2 + P[r, 3, k] * b3
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def _scratch(n, dof):
+    """The chain's arrays for ``n`` configurations (see :func:`_chain_block`)."""
+    size = max(min(BLOCK, n), 1)
+    return np.empty((dof + 1, 3, 4, size)), np.empty((3, 4, size)), np.empty((2, size))
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def _unpack(F, i, k, out):
+    """Frame ``i`` of configuration ``k`` of a block (see :func:`_chain_block`) as a 4x4 ``out``."""
+    for r in range(3):
+        for c in range(4):
+            out[r, c] = F[i, r, c, k]
     out[3, 0] = out[3, 1] = out[3, 2] = 0.0
     out[3, 3] = 1.0
-
-
-@njit(cache=True, nogil=True, error_model='numpy')
-def _copy(A, out):
-    for r in range(4):
-        for c in range(4):
-            out[r, c] = A[r, c]
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
@@ -166,8 +200,26 @@ def _smallest_column_norm(A, k, norms):
 @njit(FRAMES, cache=True, nogil=True, error_model='numpy')
 def frames(origins, axes, prismatic, tool, q, out):
     """Joint and tool frames for every configuration: ``q`` (N, dof) -> ``out`` (N, dof + 1, 4, 4)."""
-    for k in range(q.shape[0]):
-        _chain(origins, axes, prismatic, tool, q[k], out[k])
+    n, dof = q.shape
+    F, A, cs = _scratch(n, dof)
+    for first in range(0, n, BLOCK):
+        width = min(BLOCK, n - first)
+        _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs)
+        for k in range(width):
+            for i in range(dof + 1):
+                _unpack(F, i, k, out[first + k, i])
+
+
+@njit(TOOL, cache=True, nogil=True, error_model='numpy')
+def tools(origins, axes, prismatic, tool, q, out):
+    """The tool's frame alone for every configuration: ``q`` (N, dof) -> ``out`` (N, 4, 4)."""
+    n, dof = q.shape
+    F, A, cs = _scratch(n, dof)
+    for first in range(0, n, BLOCK):
+        width = min(BLOCK, n - first)
+        _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs)
+        for k in range(width):
+            _unpack(F, dof, k, out[first + k])
 
 
 @njit(SINGULAR, cache=True, nogil=True, error_model='numpy')
@@ -180,29 +232,30 @@ def min_singular_values(origins, axes, prismatic, tool, q, rows, out):
     (a singular configuration's 1e-17 would read as 1e-8).
     """
     n, dof = q.shape
-    F = np.empty((dof + 1, 4, 4))
-    size = max(min(BLOCK, n), 1)
-    A = np.empty((dof, rows, size))
-    scratch = np.empty((5, size))
+    F, A, cs = _scratch(n, dof)
+    J = np.empty((dof, rows, F.shape[3]))           # J[i, r, k]: row r of column i, configuration k
+    scratch = np.empty((5, F.shape[3]))
     norms = np.empty(dof)
+    tip = F[dof]
     for first in range(0, n, BLOCK):
         width = min(BLOCK, n - first)
-        for k in range(width):
-            _chain(origins, axes, prismatic, tool, q[first + k], F)
-            for i in range(dof):
-                zx = F[i, 0, 0] * axes[i, 0] + F[i, 0, 1] * axes[i, 1] + F[i, 0, 2] * axes[i, 2]
-                zy = F[i, 1, 0] * axes[i, 0] + F[i, 1, 1] * axes[i, 1] + F[i, 1, 2] * axes[i, 2]
-                zz = F[i, 2, 0] * axes[i, 0] + F[i, 2, 1] * axes[i, 1] + F[i, 2, 2] * axes[i, 2]
-                J = A[i]
+        _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs)
+        for i in range(dof):
+            x, y, z = axes[i, 0], axes[i, 1], axes[i, 2]
+            R, col = F[i], J[i]
+            for k in range(width):
+                zx = R[0, 0, k] * x + R[0, 1, k] * y + R[0, 2, k] * z
+                zy = R[1, 0, k] * x + R[1, 1, k] * y + R[1, 2, k] * z
+                zz = R[2, 0, k] * x + R[2, 1, k] * y + R[2, 2, k] * z
                 if prismatic[i] != 0.0:
-                    J[0, k], J[1, k], J[2, k] = zx, zy, zz
+                    col[0, k], col[1, k], col[2, k] = zx, zy, zz
                     if rows > 3:
-                        J[3, k] = J[4, k] = J[5, k] = 0.0
+                        col[3, k] = col[4, k] = col[5, k] = 0.0
                 else:
-                    lx, ly, lz = F[dof, 0, 3] - F[i, 0, 3], F[dof, 1, 3] - F[i, 1, 3], F[dof, 2, 3] - F[i, 2, 3]
-                    J[0, k], J[1, k], J[2, k] = zy * lz - zz * ly, zz * lx - zx * lz, zx * ly - zy * lx
+                    lx, ly, lz = tip[0, 3, k] - R[0, 3, k], tip[1, 3, k] - R[1, 3, k], tip[2, 3, k] - R[2, 3, k]
+                    col[0, k], col[1, k], col[2, k] = zy * lz - zz * ly, zz * lx - zx * lz, zx * ly - zy * lx
                     if rows > 3:
-                        J[3, k], J[4, k], J[5, k] = zx, zy, zz
-        _jacobi_sweeps(A, width, scratch[0], scratch[1], scratch[2], scratch[3], scratch[4])
+                        col[3, k], col[4, k], col[5, k] = zx, zy, zz
+        _jacobi_sweeps(J, width, scratch[0], scratch[1], scratch[2], scratch[3], scratch[4])
         for k in range(width):
-            out[first + k] = _smallest_column_norm(A, k, norms)
+            out[first + k] = _smallest_column_norm(J, k, norms)

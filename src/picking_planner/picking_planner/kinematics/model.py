@@ -234,7 +234,13 @@ class ArmModel:
             Homogeneous transforms; batched without a Python loop over N.
         """
         q = self.check_joints(q)
-        T = self.joint_frames(q)[:, -1]
+        batch = np.atleast_2d(q)
+        compiled = self._fk_compiled
+        if compiled is None:
+            T = self._joint_frames_numpy(batch)[:, -1]
+        else:
+            T = np.empty((batch.shape[0], 4, 4))
+            compiled.tools(_plain_floats(batch), T)
         return T[0] if q.ndim == 1 else T
 
     def jacobian(self, q):
@@ -290,9 +296,9 @@ class ArmModel:
     def _fk_compiled(self):
         """The compiled chain kernels (:class:`.fast_fk.Bound`), or None.
 
-        Loaded on first use, and used only if they give the numpy versions' frames
-        and singular values for 64 configurations within the limits. None without
-        numba, or (with a warning) if numba cannot compile or cache them here.
+        Loaded on first use, and used only if they give the numpy versions' frames (the
+        tool's alone too) and singular values for 64 configurations within the limits. None
+        without numba, or (with a warning) if numba cannot compile or cache them here.
         """
         fast_fk = load(f'{__package__}.fast_fk', 'the compiled forward kinematics', 'they run vectorised with numpy')
         if fast_fk is None:
@@ -301,10 +307,12 @@ class ArmModel:
         rng = np.random.default_rng(0)
         finite = np.isfinite(self.lower) & np.isfinite(self.upper)
         Q = rng.uniform(np.where(finite, self.lower, -np.pi), np.where(finite, self.upper, np.pi), (64, self.dof))
-        frames, sigma = np.empty((64, self.dof + 1, 4, 4)), np.empty(64)
+        frames, tools, sigma = np.empty((64, self.dof + 1, 4, 4)), np.empty((64, 4, 4)), np.empty(64)
         bound.frames(Q, frames)
+        bound.tools(Q, tools)
         bound.min_singular_values(Q, 6 if self.dof >= 6 else 3, sigma)
-        if not (np.allclose(frames, self._joint_frames_numpy(Q), rtol=0.0, atol=1e-12)
+        numpy = self._joint_frames_numpy(Q)
+        if not (np.allclose(frames, numpy, rtol=0.0, atol=1e-12) and np.array_equal(tools, frames[:, -1])
                 and np.allclose(sigma, self._min_singular_values_numpy(Q), rtol=0.0, atol=1e-9)):
             warnings.warn('the compiled forward kinematics disagree with the numpy version on their self-test: '
                           'they run vectorised with numpy', RuntimeWarning, stacklevel=2)
