@@ -358,6 +358,44 @@ def test_joint_pieces_merged_compiled_are_those_merged_with_numpy(monkeypatch):
         assert np.array_equal(one.breaks, other.breaks) and np.array_equal(one.coeffs, other.coeffs)
 
 
+def test_via_point_timing_compiled_is_the_numpy_timing_and_refuses_alike(monkeypatch):
+    """The blends and line speeds of LSPB through via points, which the planner searches
+    durations with: compiled, numpy's bit for bit; where a segment is too short (an end that
+    cannot reach its line from rest, or blends longer than a segment), the same refusal,
+    naming the same segment and joint. Points, durations and accelerations drawn across the
+    border between the two."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    assert trajectory.use_compiled_kernels()
+    rng = np.random.default_rng(12)
+    cases = []
+    for _ in range(3000):
+        m, n = int(rng.integers(2, 7)), int(rng.integers(1, 7))
+        cases.append((rng.uniform(-1.0, 1.0, (m + 1, n)), rng.uniform(0.05, 1.5, m),
+                      10.0 ** rng.uniform(-0.5, 2.0, n)))
+
+    def outcomes():
+        out = []
+        for points, durations, accel in cases:
+            try:
+                out.append(trajectory.via_lspb_timing(points, durations, accel))
+            except ValueError as exc:
+                out.append(str(exc))
+        return out
+    compiled = outcomes()
+    monkeypatch.setattr(piecewise, '_kernels', None)
+    with_numpy = outcomes()
+    kinds = {type(x) for x in compiled}
+    assert kinds == {tuple, str}, 'both timings and refusals are drawn'
+    ends = sum('segment of joint' in x for x in compiled if isinstance(x, str))
+    assert 0 < ends < sum(isinstance(x, str) for x in compiled), 'both kinds of refusal are drawn'
+    for one, other in zip(compiled, with_numpy):
+        if isinstance(other, str):
+            assert one == other
+        else:
+            assert all(np.array_equal(x, y) for x, y in zip(one, other))
+
+
 def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     """Without numba: silently None. numba failing (no writable cache directory, say): None and a
     RuntimeWarning that says what did not load, why, and what answers instead."""

@@ -25,9 +25,11 @@ tridiagonal solve and a quintic per segment), 24 µs for :func:`.via.quintic_via
 against 91 µs with numpy, whose LAPACK call and dozen array expressions cost more
 than their arithmetic.
 
-:func:`scan_limits` (the joint-limit check of every planned move) and
+:func:`scan_limits` (the joint-limit check of every planned move),
 :func:`merge_pieces` (each joint's LSPB or jerk-limited phases merged over the union
-of their breaks) do in one pass what numpy does in a dozen small calls.
+of their breaks) and :func:`via_timing` (the blends of LSPB through via points, which
+the planner searches durations with) do in one pass what numpy does in a dozen or
+fifty small calls.
 
 Imported by :mod:`.piecewise` when a segment is sampled at thousands of times, and
 for the rest only in a process that asked for them (a planner: see
@@ -277,3 +279,61 @@ def merge_pieces(joint_breaks, joint_coeffs, union, out):
                     c[m] += c[m + 1] * dt
             for i in range(6):
                 out[k, i, j] = c[i]
+
+
+_RTOL = 1e-9          # as .lspb._RTOL: "exactly the minimum" up to rounding
+VIA = types.Tuple((types.intp, types.intp, types.intp, types.float64))(_POINTS, _IN, _IN, _OUT, _OUT)
+
+
+@njit(VIA, cache=True, nogil=True, error_model='numpy')
+def via_timing(points, td, a, tb, vel):
+    """Craig's blend times ``tb`` (m + 1, n) and line velocities ``vel`` (m, n) through via
+    ``points`` (m + 1, n), m >= 2, for :func:`.lspb._via_timing`, in the numpy version's
+    operations and order (the same bits).
+
+    Returns ``(failed, k, j, need)``: 0 when the timing exists; 1 when the first (k = 0) or
+    last (k = 1) segment of joint j is too short to reach its line from rest; 2 when the
+    blends of segment k of joint j need ``need`` s, more than it lasts. The numpy version's
+    choice of k and j: the most short of the first end that is short, else of all segments.
+    """
+    m = points.shape[0] - 1
+    n = points.shape[1]
+    for k in range(m):
+        for j in range(n):
+            vel[k, j] = (points[k + 1, j] - points[k, j]) / td[k]
+    for end in range(2):
+        k = 0 if end == 0 else m - 1
+        span = td[k]
+        worst, at = 0.0, -1
+        for j in range(n):
+            disc = span * span - 2.0 * abs(points[k + 1, j] - points[k, j]) / a[j]
+            if at < 0 or disc < worst:
+                worst, at = disc, j
+            tb[0 if end == 0 else m, j] = disc       # the blend, once no end is short
+        if worst < -_RTOL * (span * span):
+            return 1, end, at, 0.0
+    for end in range(2):
+        k = 0 if end == 0 else m - 1
+        span = td[k]
+        row = 0 if end == 0 else m
+        for j in range(n):                          # the ends blend from (to) rest
+            blend = span - math.sqrt(max(tb[row, j], 0.0))
+            tb[row, j] = blend
+            vel[k, j] = (points[k + 1, j] - points[k, j]) / (span - 0.5 * blend)
+    for k in range(1, m):
+        for j in range(n):
+            tb[k, j] = abs(vel[k, j] - vel[k - 1, j]) / a[j]
+    short, worst, wk, wj = False, 0.0, -1, -1
+    for k in range(m):
+        for j in range(n):
+            linear = td[k] - 0.5 * tb[k, j] - 0.5 * tb[k + 1, j]
+            if k == 0:
+                linear -= 0.5 * tb[0, j]
+            if k == m - 1:
+                linear -= 0.5 * tb[m, j]
+            short = short or linear < -_RTOL * td[k]
+            if wk < 0 or linear < worst:
+                worst, wk, wj = linear, k, j
+    if short:
+        return 2, wk, wj, td[wk] - worst
+    return 0, 0, 0, 0.0

@@ -17,7 +17,7 @@ import functools
 import numpy as np
 
 from ._checks import as_duration, as_durations, as_joint_vector, as_points
-from .piecewise import PiecewisePolynomial, merge_joint_pieces
+from .piecewise import PiecewisePolynomial, compiled_kernels, merge_joint_pieces
 from .polynomial import _end_points
 
 # Relative slack for "exactly the minimum acceleration": a value equal to the
@@ -254,7 +254,38 @@ def via_lspb_timing(points, durations, accel):
 
 
 def _via_timing(points, td, a):
-    """Craig's blend times (m + 1, n) and line velocities (m, n) for m >= 2 segments."""
+    """Craig's blend times (m + 1, n) and line velocities (m, n) for m >= 2 segments (compiled
+    when the planner's kernels are loaded: the planner searches durations with it)."""
+    kernels = compiled_kernels()
+    if kernels is None:
+        return _via_timing_numpy(points, td, a)
+    points, td, a = (np.ascontiguousarray(x) for x in (points, td, a))
+    tb, vel = np.empty_like(points), np.empty((points.shape[0] - 1, points.shape[1]))
+    failed, k, j, need = kernels.via_timing(points, td, a, tb, vel)
+    if failed == 1:
+        raise ValueError(_end_too_short(points, td, a, k, j))
+    if failed == 2:
+        raise ValueError(_blends_too_long(td, a, k, j, need))
+    return tb, vel
+
+
+def _end_too_short(points, td, a, end, j):
+    """The refusal of the first (``end`` 0) or last (1) segment of joint ``j``."""
+    k = 0 if end == 0 else td.size - 1
+    dq = points[k + 1, j] - points[k, j]
+    return (f'accel {a[j]:.6g} is too small for the {("first", "last")[end]} segment of joint {j}: '
+            f'moving {dq:.6g} in {td[k]:.6g} s needs at least 2|dq|/duration^2 = {2.0 * abs(dq) / td[k] ** 2:.6g}')
+
+
+def _blends_too_long(td, a, k, j, need):
+    """The refusal of segment ``k`` of joint ``j``, whose blends need ``need`` s."""
+    return (f'segment {k} (between via points {k} and {k + 1}) of joint {j} is too short for '
+            f'its blends at accel {a[j]:.6g}: the blends need {need:.6g} s but the segment '
+            f'lasts {td[k]:.6g} s; raise accel or lengthen the segment')
+
+
+def _via_timing_numpy(points, td, a):
+    """:func:`_via_timing` with numpy (without numba, and the compiled version's reference)."""
     m = points.shape[0] - 1
     dq = points[1:] - points[:-1]                                   # (m, n)
     vel = dq / td[:, None]
@@ -267,11 +298,7 @@ def _via_timing(points, td, a):
     short = disc < -_RTOL * span ** 2
     if short.any():
         k = 0 if short[0].any() else 1
-        j = int(np.argmin(disc[k]))
-        raise ValueError(
-            f'accel {a[j]:.6g} is too small for the {("first", "last")[k]} segment of joint {j}: '
-            f'moving {moved[k, j]:.6g} in {span[k, 0]:.6g} s needs at least '
-            f'2|dq|/duration^2 = {2.0 * abs(moved[k, j]) / span[k, 0] ** 2:.6g}')
+        raise ValueError(_end_too_short(points, td, a, k, int(np.argmin(disc[k]))))
     blend = span - np.sqrt(np.maximum(disc, 0.0))
     vel[ends] = moved / (span - 0.5 * blend)
     tb = np.empty((m + 1, points.shape[1]))
@@ -282,9 +309,5 @@ def _via_timing(points, td, a):
     linear[-1] -= 0.5 * tb[-1]
     if (linear < -_RTOL * td[:, None]).any():
         k, j = np.unravel_index(int(np.argmin(linear)), linear.shape)
-        need = td[k] - linear[k, j]
-        raise ValueError(
-            f'segment {k} (between via points {k} and {k + 1}) of joint {j} is too short for '
-            f'its blends at accel {a[j]:.6g}: the blends need {need:.6g} s but the segment '
-            f'lasts {td[k]:.6g} s; raise accel or lengthen the segment')
+        raise ValueError(_blends_too_long(td, a, k, j, td[k] - linear[k, j]))
     return tb, vel
