@@ -65,7 +65,7 @@ class PiecewisePolynomial:
 
     def __init__(self, breaks, coeffs):
         breaks = np.array(breaks, dtype=float)
-        coeffs = np.array(coeffs, dtype=float)
+        coeffs = np.array(coeffs, dtype=float, order='C')
         if breaks.ndim != 1 or breaks.size < 2:
             raise ValueError('breaks must be a 1-D array with at least two times')
         if coeffs.ndim != 3 or coeffs.shape[0] != breaks.size - 1:
@@ -78,8 +78,11 @@ class PiecewisePolynomial:
             raise ValueError('breaks and coeffs must be finite')
         if (breaks[1:] <= breaks[:-1]).any():          # np.diff costs several times as much here
             raise ValueError('breaks must be strictly increasing')
-        padded = np.zeros((coeffs.shape[0], _N_COEFFS, coeffs.shape[2]))
-        padded[:, :coeffs.shape[1], :] = coeffs
+        if coeffs.shape[1] == _N_COEFFS:
+            padded = coeffs                    # np.array copied it: ours alone
+        else:
+            padded = np.zeros((coeffs.shape[0], _N_COEFFS, coeffs.shape[2]))
+            padded[:, :coeffs.shape[1], :] = coeffs
         breaks.flags.writeable = False
         padded.flags.writeable = False
         self._breaks = breaks
@@ -89,8 +92,7 @@ class PiecewisePolynomial:
         # (stretched, concatenated) that are never sampled themselves.
         self._break_list = None
         self._rows = None
-        self._zeros = np.zeros(coeffs.shape[2])
-        self._zeros.flags.writeable = False
+        self._zeros = _rest(coeffs.shape[2])
 
     # -- shape and time -------------------------------------------------
     @property
@@ -247,17 +249,19 @@ class PiecewisePolynomial:
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
         if self._end_state is None:
-            # The last segment at its end: three small products with the powers of its length
-            # (every join and every path asks; no derivative table is built for it).
+            # The last segment at its end: one small product with the powers of its length and
+            # their derivatives (every join and every path asks; no derivative table is built for it).
             tau = float(self._breaks[-1] - self._breaks[-2])
             tau2 = tau * tau
-            powers = np.array((1.0, tau, tau2, tau2 * tau, tau2 * tau2, tau2 * tau2 * tau))
-            c = self._coeffs[-1]
-            q, qd, qdd = powers @ c, (_D1 * powers[:-1]) @ c[1:], (_D2 * powers[:-2]) @ c[2:]
-            for x in (q, qd, qdd):
-                x.flags.writeable = False
-            self._end_state = (q, qd, qdd)
-        return tuple(x.copy() for x in self._end_state)
+            tau3, tau4 = tau2 * tau, tau2 * tau2
+            basis = np.array(((1.0, tau, tau2, tau3, tau4, tau4 * tau),
+                              (0.0, 1.0, 2.0 * tau, 3.0 * tau2, 4.0 * tau3, 5.0 * tau4),
+                              (0.0, 0.0, 2.0, 6.0 * tau, 12.0 * tau2, 20.0 * tau3)))
+            state = basis @ self._coeffs[-1]
+            state.flags.writeable = False
+            self._end_state = state
+        q, qd, qdd = self._end_state.copy()
+        return q, qd, qdd
 
     def _derivative_rows(self):
         """Each segment's coefficients of q, qd and qdd, shape (m, 3n, 6), read-only (built on
@@ -295,6 +299,14 @@ class PiecewisePolynomial:
     def segment_end_times(self) -> np.ndarray:
         """The times at which segments end, s (for plotting and reports)."""
         return self._breaks[1:].copy()
+
+
+@functools.lru_cache(maxsize=None)
+def _rest(n):
+    """Zeros for ``n`` joints, read-only (the velocity and acceleration held after the end)."""
+    zeros = np.zeros(n)
+    zeros.flags.writeable = False
+    return zeros
 
 
 def _stack_derivatives(coeffs):
