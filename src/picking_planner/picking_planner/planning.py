@@ -235,7 +235,12 @@ class Planner:
 
     def shortest_duration(self, q0, qf, method):
         """The shortest time in which every joint makes its move within the scaled limits, s."""
-        h = np.abs(np.asarray(qf, float) - np.asarray(q0, float))
+        return float(self._shortest_durations(np.array((q0, qf), float), method)[0])
+
+    def _shortest_durations(self, qs, method):
+        """:meth:`shortest_duration` of each move between consecutive configurations ``qs``
+        (m + 1, n), shape (m,)."""
+        h = np.abs(np.diff(qs, axis=0))
         v, a = self._vmax, self._amax
         if method == 'lspb':
             cruise = h > v**2 / a
@@ -243,7 +248,7 @@ class Planner:
         else:
             kv, ka = _PEAKS[method]
             t = np.maximum(kv * h / v, np.sqrt(ka * h / a))
-        return max(float(t.max()), self.settings.sample_period)
+        return np.maximum(t.max(axis=1), self.settings.sample_period)
 
     def _check(self, traj, label):
         t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
@@ -549,7 +554,7 @@ class Planner:
         if start is not None or end is not None:
             raise ValueError('only optimal via points start or end moving')
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
-        durations = np.array([self.shortest_duration(x, y, profile) for x, y in zip(qs[:-1], qs[1:])])
+        durations = self._shortest_durations(qs, profile)
         if method == 'via_lspb' and len(durations) > 1:
             # Interior via points are passed at speed, not stopped at: start from 60 %, but not
             # below the timing whose lines keep the speed limit v. An interior line runs at
@@ -559,9 +564,9 @@ class Planner:
             dq = np.abs(np.diff(qs, axis=0))
             v, a = self._vmax, self._amax
             need = np.max(dq / v, axis=1)
-            for k in (0, -1):
-                need[k] = float(np.max(np.where(dq[k] >= v * v / (2.0 * a), dq[k] / v + v / (2.0 * a),
-                                                np.sqrt(2.0 * dq[k] / a))))
+            ends = dq[[0, -1]]
+            need[[0, -1]] = np.max(np.where(ends >= v * v / (2.0 * a), ends / v + v / (2.0 * a),
+                                            np.sqrt(2.0 * ends / a)), axis=1)
             durations = np.maximum(0.6 * durations, need)
         durations = np.maximum(durations, 2 * self.settings.sample_period)
         last = None
@@ -603,7 +608,7 @@ class Planner:
         (v0, a0), (vf, af) = start or (None, None), end or (None, None)
         if len(qs) == 2:
             return self.joint_move(qs[0], qs[1], 'optimal', v0=v0, a0=a0, vf=vf, af=af)
-        chords = np.array([self.shortest_duration(a, b, 'lspb') for a, b in zip(qs[:-1], qs[1:])])
+        chords = self._shortest_durations(qs, 'lspb')
         slopes = np.diff(qs, axis=0) / chords[:, None]
         onward = np.sign(slopes[:-1]) == np.sign(slopes[1:])
         mean = np.where(onward, 0.5 * (slopes[:-1] + slopes[1:]), 0.0)
