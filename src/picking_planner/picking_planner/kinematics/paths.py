@@ -114,12 +114,13 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     t_check = np.linspace(0.0, path.duration, (n - 1) * between + 1)
     t = t_check[::between]
     path_poses = path.poses(t_check)
+    seed = arm.check_joints(seed, 'seed')
     if not path.oriented:
-        path_poses[:, :3, :3] = arm.fk(arm.check_joints(seed, 'seed'))[:3, :3]
+        path_poses[:, :3, :3] = arm.fk(seed)[:3, :3]
     poses = path_poses[::between]
-    q = _batched(arm, poses, arm.check_joints(seed, 'seed'), max_joint_step)
+    q = _batched(arm, poses, seed, max_joint_step)
     if q is None:
-        q = _sequential(arm, poses, t, arm.check_joints(seed, 'seed'), max_joint_step)
+        q = _sequential(arm, poses, t, seed, max_joint_step)
     sigma = arm.min_singular_values(q)
     worst = int(np.argmin(sigma))
     if sigma[worst] < singular_threshold:
@@ -142,9 +143,8 @@ def _batched(arm, poses, seed, max_joint_step):
     q, ok, _ = arm.ik_batch(poses, seed)
     if not ok.all():
         return None
-    steps = np.abs(np.diff(np.vstack([seed, q]), axis=0))
-    steps[0] = 0.0                                  # the first sample may lie anywhere near the seed
-    return q if steps.max() <= max_joint_step else None
+    # From sample to sample (the first may lie anywhere near the seed).
+    return q if len(q) < 2 or np.abs(np.diff(q, axis=0)).max() <= max_joint_step else None
 
 
 def _sequential(arm, poses, t, seed, max_joint_step):
