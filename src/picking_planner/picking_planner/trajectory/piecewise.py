@@ -222,9 +222,7 @@ class PiecewisePolynomial:
         b = self._break_list or self._breaks_as_list()
         n = self._coeffs.shape[2]
         if not t <= b[-1]:                       # after the end (NaN too): hold the end, at rest
-            if self._end_state is None:
-                self.end_state()
-            return self._end_state[0], self._zeros, self._zeros
+            return self._end()[0], self._zeros, self._zeros
         if not t > b[0]:
             if t < b[0]:                         # before the start: hold the first point, at rest
                 return self._coeffs[0, 0].copy(), np.zeros(n), np.zeros(n)
@@ -248,6 +246,11 @@ class PiecewisePolynomial:
 
     def end_state(self):
         """``(q, qd, qdd)`` at the end, each shape (n_joints,)."""
+        q, qd, qdd = self._end().copy()
+        return q, qd, qdd
+
+    def _end(self):
+        """The end state, rows q, qd and qdd (3, n_joints), read-only (computed on first use)."""
         if self._end_state is None:
             # The last segment at its end: one small product with the powers of its length and
             # their derivatives (every join and every path asks; no derivative table is built for it).
@@ -260,8 +263,7 @@ class PiecewisePolynomial:
             state = basis @ self._coeffs[-1]
             state.flags.writeable = False
             self._end_state = state
-        q, qd, qdd = self._end_state.copy()
-        return q, qd, qdd
+        return self._end_state
 
     def _derivative_rows(self):
         """Each segment's coefficients of q, qd and qdd, shape (m, 3n, 6), read-only (built on
@@ -524,8 +526,8 @@ def concatenate(trajectories):
             raise ValueError(f'trajectory {i} has {nxt.n_joints} joints, the first has {n}')
     if len(trajectories) > 1:
         # Every join at once: (joins, position/velocity, joints) at each side.
-        ends = np.array([tr.end_state()[:2] for tr in trajectories[:-1]])
-        starts = np.array([tr.start_state()[:2] for tr in trajectories[1:]])
+        ends = np.array([tr._end()[:2] for tr in trajectories[:-1]])
+        starts = np.array([tr.coeffs[0, :2] for tr in trajectories[1:]])
         scale = np.maximum(1.0, np.maximum(np.abs(ends).max(axis=2), np.abs(starts).max(axis=2)))
         bad = np.abs(ends - starts).max(axis=2) > 1e-9 * scale
         if bad.any():
@@ -572,7 +574,9 @@ def stack(trajectories):
     for tr in trajectories:
         seg = np.clip(np.searchsorted(tr.breaks, mids, side='right') - 1, 0, len(tr.breaks) - 2)
         coeffs, shift = tr.coeffs[seg], starts - tr.breaks[seg]
-        moved = shift != 0.0              # the intervals that start inside one of its segments
+        # The intervals that start inside one of its segments, and not constant there (a
+        # gripper holding its opening through the arm's many segments needs no shift).
+        moved = (shift != 0.0) & coeffs[:, 1:].any(axis=(1, 2))
         if moved.any():
             coeffs[moved] = taylor_shift(coeffs[moved], shift[moved])
         blocks.append(coeffs)
