@@ -176,6 +176,22 @@ class Plan:
                 'peak_velocity': np.abs(qd).max(axis=0), 'peak_acceleration': np.abs(qdd).max(axis=0)}
 
 
+def _check_times(traj):
+    """Where the limits of ``traj`` (its own clock starting at 0) are checked: every 2.5 ms, at
+    least 50 times; for a trajectory of parabolas (LSPB: each piece of degree <= 2), exactly
+    where its extremes lie instead: the breaks (its velocity is linear in each piece), the
+    middle of each piece (its constant acceleration; at a break the piece that ends there
+    answers) and where a joint turns inside a piece (its position's extreme there)."""
+    b, c = traj.breaks, traj.coeffs
+    if c[:, 3:].any():
+        return np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
+    span = b[1:] - b[:-1]
+    v0 = c[:, 1]
+    piece, joint = np.nonzero(v0 * (v0 + 2.0 * c[:, 2] * span[:, None]) < 0.0)    # qd changes sign
+    turns = b[piece] - v0[piece, joint] / (2.0 * c[piece, 2, joint])
+    return np.sort(np.concatenate((b, b[:-1] + 0.5 * span, turns)))
+
+
 def feasible_start(arm, q, qd, qdd):
     """An extrapolated reference state held within the limits, as the controller's reference is.
 
@@ -251,7 +267,7 @@ class Planner:
         return np.maximum(t.max(axis=1), self.settings.sample_period)
 
     def _check(self, traj, label):
-        t = np.linspace(0.0, traj.duration, max(50, int(traj.duration / 0.0025)))
+        t = _check_times(traj)
         q, qd, qdd = traj.sample(t)
         try:
             check_joint_limits(self.arm, t, q, qd, qdd, slack=1e-6)

@@ -37,6 +37,30 @@ def test_pose_goal_reaches_the_pose_within_the_limits(arm, planner, method):
     assert plan.trajectory.start_state()[0] == pytest.approx(HOME)
 
 
+def test_moves_of_parabolas_are_checked_where_their_extremes_lie():
+    """LSPB moves and via points (each piece a parabola) are checked at their breaks, the
+    middle of each piece and where a joint turns inside one: the largest |q|, |qd| and |qdd|
+    there are those of a sampling every 10 µs (exactly where the sampling meets them), in far
+    fewer points; a move with higher powers is sampled every 2.5 ms."""
+    from picking_planner import trajectory
+    from picking_planner.planning import _check_times
+    rng = np.random.default_rng(21)
+    for _ in range(30):
+        points = rng.uniform(-1.0, 1.0, (4, 3))
+        for traj in (trajectory.via_lspb(points, rng.uniform(0.8, 1.5, 3), 12.0),
+                     trajectory.lspb(points[0], points[1], 1.2, 8.0)):
+            t = _check_times(traj)
+            dense = np.linspace(0.0, traj.duration, int(traj.duration / 1e-5) + 1)
+            assert len(t) < 0.1 * traj.duration / 0.0025 and np.all(np.diff(t) >= 0.0)
+            assert t[0] == 0.0 and t[-1] == traj.duration
+            for at_checks, everywhere in zip(traj.sample(t), traj.sample(dense)):
+                assert np.abs(at_checks).max(axis=0) == pytest.approx(np.abs(everywhere).max(axis=0), abs=1e-9)
+                assert np.all(at_checks.max(axis=0) >= everywhere.max(axis=0) - 1e-12)
+                assert np.all(at_checks.min(axis=0) <= everywhere.min(axis=0) + 1e-12)
+    quintic = trajectory.quintic(np.zeros(2), np.ones(2), 1.0)
+    assert np.diff(_check_times(quintic)) == pytest.approx(np.full(399, 1.0 / 399))
+
+
 def test_shortest_duration_uses_a_limit_fully(arm, planner):
     q_goal = HOME + np.array([1.0, 0, 0, 0, 0, 0])
     traj = planner.joint_move(HOME, q_goal, 'quintic')
