@@ -607,7 +607,7 @@ class Planner:
                 self._check(traj, method)
                 return traj
             except ValueError as exc:       # blends do not fit, or a limit is broken: slow down
-                last = exc
+                last = str(exc)             # (the exception itself, its traceback holding this frame, is a cycle)
                 durations = durations * 1.04
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')
 
@@ -639,12 +639,12 @@ class Planner:
                 parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], a[i],
                                                  v[i + 1], a[i + 1]) for i in range(len(qs) - 1)]
             except ValueError as exc:
-                error = exc
+                error = str(exc)            # (not the exception: with its traceback, a cycle)
                 continue
             if best is None or sum(p.duration for p in parts) < sum(p.duration for p in best):
                 best = parts
         if best is None:
-            raise error
+            raise ValueError(error)
         traj = trajectory.concatenate(best)
         self._check(traj, 'optimal via points')
         return traj

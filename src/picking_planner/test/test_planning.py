@@ -278,3 +278,29 @@ def test_plans_from_extrapolated_moving_starts_keep_every_limit(arm):
                                rng.uniform(-1.2, 1.2, 6) * arm.max_velocity,
                                rng.uniform(-1.5, 1.5, 6) * arm.max_acceleration)
         _within_limits(arm, planner.plan_pose(start, goal))
+
+
+@pytest.mark.parametrize('optimal', [False, True])
+def test_planning_a_pick_cycle_leaves_nothing_for_the_cycle_collector(arm, optimal):
+    """No reference cycles: a refusal kept while the search goes on (its traceback holds the
+    searching frame) once left every plan to the cycle collector, which stops the process to
+    find them; now each plan is freed as soon as its last reference goes."""
+    import gc
+    if optimal:
+        planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
+                                               limit_jerk=True, cartesian_profile='optimal'))
+        settings = PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
+                                blend_radius=0.02).validate(arm)
+    else:
+        planner, settings = Planner(arm, PlannerSettings(speed_scale=1.0)), PickSettings().validate(arm)
+    apple = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)])
+    start = (np.asarray(settings.home_positions, float), Z, Z)
+    PickCycle(planner, settings).plan(start, apple)
+    gc.collect()
+    gc.disable()
+    try:
+        for _ in range(3):
+            PickCycle(planner, settings).plan(start, apple).samples(0.01)
+        assert gc.collect() == 0
+    finally:
+        gc.enable()
