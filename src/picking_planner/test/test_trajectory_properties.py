@@ -277,6 +277,47 @@ def test_long_samplings_of_a_shared_profile_are_the_same_compiled_or_with_numpy(
             np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
 
 
+@pytest.mark.parametrize('kind', ['cubic', 'quintic'])
+def test_a_move_from_rest_to_rest_is_the_general_one_and_knows_its_shared_profile(kind):
+    """From rest to rest (the default), a cubic or quintic is built as one profile scaled per
+    joint: the general Hermite move's coefficients to rounding, and the profile its joints
+    share set at once (a long sampling needs not look for it), the one found by looking."""
+    from picking_planner.trajectory.piecewise import _shared_profile
+    make = getattr(trajectory, kind)
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        q0, qf, T = rng.uniform(-2.0, 2.0, 5), rng.uniform(-2.0, 2.0, 5), float(rng.uniform(0.01, 5.0))
+        rest = make(q0, qf, T)
+        general = make(q0, qf, T, v0=np.zeros(5)) if kind == 'cubic' else make(q0, qf, T, a0=np.zeros(5))
+        assert rest.coeffs == pytest.approx(general.coeffs, rel=1e-12, abs=1e-12 * np.abs(general.coeffs).max())
+        U, w, c0 = rest._one_profile()
+        found = _shared_profile(rest.coeffs[0])
+        assert np.outer(U[0], w) == pytest.approx(np.outer(found[0][0], found[1]), rel=1e-12, abs=1e-12)
+        assert np.array_equal(c0, q0)
+
+
+def test_a_long_sampling_checks_its_times_in_the_compiled_pass(monkeypatch):
+    """The compiled sampler of a synchronised move checks the times as it reads them: a NaN or
+    an infinite time among 100 000 is refused as before, and times outside the move hold its
+    ends at rest, as numpy has them."""
+    pytest.importorskip('numba')
+    from picking_planner.trajectory import piecewise
+    traj = trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0)
+    for bad in (np.nan, np.inf, -np.inf):
+        t = np.linspace(0.0, 2.0, 100_000)
+        t[77_777] = bad
+        with pytest.raises(ValueError, match='t must be finite'):
+            traj.sample(t)
+    t = np.linspace(-0.5, 2.5, 100_000)
+    compiled = traj.sample(t)
+    monkeypatch.setattr(piecewise, '_compiled_sampler', lambda: None)
+    with_numpy = traj.sample(t)
+    outside = (t < 0.0) | (t > 2.0)
+    for got, want in zip(compiled, with_numpy):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-12)
+    assert not compiled[1][outside].any() and not compiled[2][outside].any()
+
+
 @pytest.mark.parametrize('make', [
     lambda: trajectory.quintic([0.0, 1.0, -2.0], [1.0, -2.0, 0.5], 2.0).shifted(0.3),       # one segment
     lambda: trajectory.quintic_via(np.random.default_rng(3).uniform(-1.0, 1.0, (41, 6)), np.full(40, 0.01)),

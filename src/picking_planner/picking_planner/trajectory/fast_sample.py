@@ -54,8 +54,7 @@ _OUT = types.Array(types.float64, 2, 'C')
 # only: with unknown strides ('A') or an index computed in the inner loop, LLVM does not
 # vectorise the loops, and the kernel took 3x as long (0.65-0.77 ms against 0.21 ms for
 # 100 000 x 6 samples on an AVX-512 machine, where numpy's fill of the output takes 0.21 ms).
-SIGNATURE = types.void(_IN, types.float64, types.float64, types.float64, types.boolean,
-                       _PROFILE, _IN, _IN, _OUT, types.intp)
+SIGNATURE = types.boolean(_IN, types.float64, types.float64, types.float64, _PROFILE, _IN, _IN, _OUT, types.intp)
 
 #: Samples per chunk (the chunk's profile, 3 x 131 072 doubles, 3 MiB, stays in the L2 or L3
 #: cache). Each output row is written whole for a chunk, so that a sampling of up to this many
@@ -67,17 +66,20 @@ CHUNK = 1 << 17
 
 
 @njit(SIGNATURE, cache=True, nogil=True, error_model='numpy')
-def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
+def sample_shared(t, lo, hi, origin, profile, w, c0, out, col):
     """Write q, qd, qdd at times ``t`` into ``out[:, col:col + len(t)]`` (out: 3n rows, q then
-    qd then qdd).
+    qd then qdd); return True if a time lies outside ``[lo, hi]`` or is NaN: the check of the
+    times, in the pass that reads them (a caller then looks at them again; two passes of numpy
+    over 100 000 times cost more than the count here).
 
     ``profile`` (3, 6): power-basis coefficients of ``s``, ``s'`` and ``s''`` in local time
-    ``tau = t - origin``, the time first clipped to ``[lo, hi]`` if ``clip``; ``w`` (n,) the
-    joints' scales; ``c0`` (n,) their positions at ``tau = 0``.
+    ``tau = t - origin``, the time first clipped to ``[lo, hi]``; ``w`` (n,) the joints'
+    scales; ``c0`` (n,) their positions at ``tau = 0``.
     """
     n = w.size
     size = t.size
     s = np.empty((3, min(CHUNK, size)))
+    odd = 0
     for a in range(0, size, CHUNK):
         m = min(CHUNK, size - a)
         times = t[a:a + m]
@@ -85,12 +87,16 @@ def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
             c5, c4, c3, c2, c1, c = profile[r, 5], profile[r, 4], profile[r, 3], profile[r, 2], profile[r, 1], \
                 profile[r, 0]
             sr = s[r]
-            for k in range(m):
-                x = times[k]
-                if clip:
-                    x = min(max(x, lo), hi)
-                x -= origin
-                sr[k] = ((((c5 * x + c4) * x + c3) * x + c2) * x + c1) * x + c
+            if r == 0:
+                for k in range(m):
+                    x = times[k]
+                    odd += 0 if (x >= lo) & (x <= hi) else 1      # NaN too
+                    x = min(max(x, lo), hi) - origin
+                    sr[k] = ((((c5 * x + c4) * x + c3) * x + c2) * x + c1) * x + c
+            else:
+                for k in range(m):
+                    x = min(max(times[k], lo), hi) - origin
+                    sr[k] = ((((c5 * x + c4) * x + c3) * x + c2) * x + c1) * x + c
         for r in range(3):
             src = s[r]
             for j in range(n):
@@ -99,6 +105,7 @@ def sample_shared(t, lo, hi, origin, clip, profile, w, c0, out, col):
                 dst = out[r * n + j][col + a:col + a + m]
                 for k in range(m):
                     dst[k] = cj + wj * src[k]
+    return odd > 0
 
 
 _SEGMENTS = types.Array(types.float64, 3, 'C', readonly=True)

@@ -16,6 +16,7 @@ paper's examples); time is in seconds.
 from __future__ import annotations
 
 import functools
+import math
 from bisect import bisect_left
 
 import numpy as np
@@ -61,7 +62,7 @@ class PiecewisePolynomial:
     rest, the way a controller holds its goal.
     """
 
-    __slots__ = ('_breaks', '_coeffs', '_end_state', '_break_list', '_rows', '_zeros')
+    __slots__ = ('_breaks', '_coeffs', '_end_state', '_break_list', '_rows', '_zeros', '_shared')
 
     def __init__(self, breaks, coeffs):
         breaks = np.array(breaks, dtype=float)
@@ -92,6 +93,9 @@ class PiecewisePolynomial:
         # (stretched, concatenated) that are never sampled themselves.
         self._break_list = None
         self._rows = None
+        # A one-segment trajectory's profile its joints share (see _shared_profile): None until
+        # asked for (or set by the move that built it), False where they share none.
+        self._shared = None
         self._zeros = _rest(coeffs.shape[2])
 
     # -- shape and time -------------------------------------------------
@@ -150,6 +154,8 @@ class PiecewisePolynomial:
         joints share one profile (a synchronised point-to-point move), that
         profile is evaluated once and scaled per joint.
         """
+        if len(self._breaks) == 2 and (done := self._sample_synchronised(t)) is not None:
+            return done
         t, t_min, t_max = time_array_and_extremes(t)
         breaks = self._breaks
         n = self.n_joints
@@ -160,8 +166,9 @@ class PiecewisePolynomial:
             _kernels.sample_pieces(breaks, self._coeffs, np.ascontiguousarray(t), rows)
             outside_any = False                            # the kernel held them at rest
         elif m == 1:
-            _eval_block(t, breaks[0], breaks[-1], breaks[0], self._derivative_rows()[0], rows, outside_any,
-                        self._coeffs[0])
+            shared = self._one_profile() if t.size >= _SHARED_MIN else None
+            _eval_block(t, breaks[0], breaks[-1], breaks[0], None if shared else self._derivative_rows()[0], rows,
+                        outside_any, shared)
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
             # Many short segments (a spline through 10 ms samples): one gather and one
             # batched product instead of a Python loop over the segments.
@@ -185,7 +192,7 @@ class PiecewisePolynomial:
             for k in np.flatnonzero(edges[1:] > edges[:-1]):
                 lo, hi = edges[k], edges[k + 1]
                 _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], stacked[k], rows, outside_any,
-                            self._coeffs[k], col=lo)
+                            _shared_profile(self._coeffs[k]) if hi - lo >= _SHARED_MIN else None, col=lo)
             if order is not None:
                 unsorted = np.empty_like(rows)
                 unsorted[:, order] = rows
@@ -265,6 +272,36 @@ class PiecewisePolynomial:
             self._end_state = state
         return self._end_state
 
+    def _sample_synchronised(self, t):
+        """:meth:`sample` of this one-segment trajectory at thousands of times where its joints
+        share a profile, in the compiled pass that also checks the times (two passes over them
+        fewer than :func:`time_array_and_extremes`); None where that does not apply."""
+        if not (isinstance(t, np.ndarray) and t.ndim == 1 and t.dtype == float and t.size >= _SHARED_MIN):
+            return None
+        shared = self._one_profile()
+        kernel = _compiled_sampler() if shared is not None else None
+        if kernel is None:
+            return None
+        lo, hi = self._breaks.tolist()
+        n = self.n_joints
+        rows = np.empty((3 * n, t.size))
+        out = rows.T
+        q, qd, qdd = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
+        if kernel(np.ascontiguousarray(t), lo, hi, lo, *shared, rows, 0):     # a time outside, or NaN
+            if not np.isfinite(t).all():
+                raise ValueError('t must be finite')
+            outside = (t < lo) | (t > hi)
+            qd[outside] = 0.0
+            qdd[outside] = 0.0
+        return q, qd, qdd
+
+    def _one_profile(self):
+        """The profile the joints of this one-segment trajectory share (see :func:`_shared_profile`),
+        or None (found on first use)."""
+        if self._shared is None:
+            self._shared = _shared_profile(self._coeffs[0]) or False
+        return self._shared or None
+
     def _derivative_rows(self):
         """Each segment's coefficients of q, qd and qdd, shape (m, 3n, 6), read-only (built on
         first use)."""
@@ -322,24 +359,23 @@ def _stack_derivatives(coeffs):
     return out
 
 
-def _eval_block(t, lo, hi, origin, rows, out, clip=True, coeffs=None, col=0):
+def _eval_block(t, lo, hi, origin, rows, out, clip=True, shared=None, col=0):
     """Write q, qd, qdd at times ``t`` (clipped to ``[lo, hi]``, local to ``origin``) into
     ``out[:, col:col + len(t)]`` (3n rows), from one segment's ``rows`` (3n, 6) of stacked
     coefficients.
-    ``clip=False`` when no time lies outside ``[lo, hi]``: the clip (a quarter of the
-    power basis's cost) is skipped.
+    ``clip=False`` when no time lies outside ``[lo, hi]``: numpy skips the clip (a quarter of
+    the power basis's cost; the compiled sampler clips every time, at no cost it can measure).
 
     A chunk at a time: each chunk's power basis stays in cache and no full-length
     temporary is written, so a long sampling costs little more than writing its output.
-    Given the segment's ``coeffs`` (6, n) and many times, a profile its joints share (see
-    :func:`_shared_profile`) is evaluated once and scaled per joint: by the compiled
+    Given a profile the segment's joints share (``shared``, see :func:`_shared_profile`;
+    ``rows`` is not needed then), it is evaluated once and scaled per joint: by the compiled
     :func:`.fast_sample.sample_shared` in one pass, or (without numba) by numpy with a third
     of the products.
     """
     size = t.size
-    shared = _shared_profile(coeffs) if coeffs is not None and size >= _SHARED_MIN else None
     if shared is not None and (kernel := _compiled_sampler()) is not None:
-        kernel(np.ascontiguousarray(t), lo, hi, origin, bool(clip), *shared, out, col)
+        kernel(np.ascontiguousarray(t), lo, hi, origin, *shared, out, col)
         return
     out = out[:, col:col + size]
     basis, dst = (rows, out) if shared is None else (shared[0], np.empty((3, size)))

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import as_duration, as_joint_vector
-from .piecewise import PiecewisePolynomial
+from .piecewise import PiecewisePolynomial, _stack_derivatives
 
 
 def hermite_coeffs(q0, v0, a0, q1, v1, a1, duration):
@@ -70,6 +70,30 @@ def _end_points(q0, qf):
     return a, b
 
 
+#: The cubic's and the quintic's profile from rest to rest over a unit time, ``s(u) = sum c_i u^i``
+#: from 0 to 1 (Eq. 11 with v0 = vf = 0; the minimum-jerk quintic).
+_REST_TO_REST = {'cubic': np.array([0.0, 0.0, 3.0, -2.0, 0.0, 0.0]),
+                 'quintic': np.array([0.0, 0.0, 0.0, 10.0, -15.0, 6.0])}
+
+
+def _at_rest(*values):
+    """True when every end velocity and acceleration given is the number 0 (the default)."""
+    return all(isinstance(x, (int, float)) and x == 0 for x in values)
+
+
+def _synchronised(q0, h, duration, kind):
+    """The move of every joint along one profile from rest to rest, scaled by its distance
+    ``h``: ``q_j(tau) = q0_j + h_j s(tau / duration)``. The trajectory knows it shares that
+    profile (a long sampling evaluates it once and scales it per joint, see
+    :func:`.piecewise._shared_profile`) without searching its coefficients for it."""
+    s = _REST_TO_REST[kind] * duration ** -np.arange(6.0)      # s in the segment's own time
+    coeffs = s[:, None] * h
+    coeffs[0] = q0
+    traj = PiecewisePolynomial([0.0, duration], coeffs[None])
+    traj._shared = (_stack_derivatives(s[None, :, None])[0], h, q0)
+    return traj
+
+
 def _single(coeffs, duration):
     """One-segment trajectory from (n_joints, 6) coefficients."""
     return PiecewisePolynomial([0.0, duration], coeffs.T[None, :, :])
@@ -97,6 +121,8 @@ def cubic(q0, qf, duration, v0=0.0, vf=0.0):
     """
     q0, qf = _end_points(q0, qf)
     duration = as_duration(duration)
+    if _at_rest(v0, vf):
+        return _synchronised(q0, qf - q0, duration, 'cubic')
     n = q0.size
     v0 = as_joint_vector(v0, 'v0', n)
     vf = as_joint_vector(vf, 'vf', n)
@@ -127,6 +153,8 @@ def quintic(q0, qf, duration, v0=0.0, vf=0.0, a0=0.0, af=0.0):
     """
     q0, qf = _end_points(q0, qf)
     duration = as_duration(duration)
+    if _at_rest(v0, vf, a0, af):
+        return _synchronised(q0, qf - q0, duration, 'quintic')
     n = q0.size
     v0, vf, a0, af = (as_joint_vector(x, name, n) for name, x in
                       (('v0', v0), ('vf', vf), ('a0', a0), ('af', af)))
