@@ -210,6 +210,7 @@ class PickCycle:
         Raises Unreachable naming the knot point that cannot be reached.
         """
         pl, s, arm = self.planner, self.s, self.arm
+        start = pl._start(start)
         if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
                              'entered and left at speed)')

@@ -294,9 +294,29 @@ class Planner:
             raise Unreachable(f'jerk limit broken: {over * PLAN_MARGIN:.2f} times the limit; slow the motion down')
 
     # -- the start ----------------------------------------------------------------------
+    def _start(self, start):
+        """``start = (q, qd, qdd)`` as three finite arrays of one value per joint (a velocity or an
+        acceleration given as one number holds for every joint), else ValueError."""
+        try:
+            q, qd, qdd = start
+        except (TypeError, ValueError):
+            raise ValueError('start must be (q, qd, qdd): positions, velocities, accelerations') from None
+        out = []
+        for name, x in (('start position', q), ('start velocity', qd), ('start acceleration', qdd)):
+            try:
+                arr = np.asarray(x, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f'{name} must be numbers, one per joint') from None
+            if arr.ndim == 0 and name != 'start position':
+                arr = np.full(self.arm.dof, float(arr))
+            if arr.shape != (self.arm.dof,):
+                raise ValueError(f'{name} must have {self.arm.dof} values (one per joint), got shape {arr.shape}')
+            out.append(self.arm.check_joints(arr, name))
+        return tuple(out)
+
     def _from_rest(self, start):
         """A braking segment when the start state moves (None at rest), and the rest state."""
-        q, qd, qdd = (np.asarray(x, float) for x in start)
+        q, qd, qdd = self._start(start)
         if np.abs(qd).max() < 1e-4 and np.abs(qdd).max() < 1e-3:
             return None, q
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, np.inf)
@@ -385,7 +405,7 @@ class Planner:
         method = method or self.settings.method
         if method not in POSE_METHODS:
             raise ValueError(f'unknown method {method!r}; choose one of {", ".join(POSE_METHODS)}')
-        q, qd, qdd = (np.asarray(x, float) for x in start)
+        q, qd, qdd = start = self._start(start)
         if method == 'line':
             stop, q_rest = self._from_rest(start)
             traj, path = self.line(q_rest, self.arm.fk(q_rest), T_goal)

@@ -304,3 +304,21 @@ def test_planning_a_pick_cycle_leaves_nothing_for_the_cycle_collector(arm, optim
         assert gc.collect() == 0
     finally:
         gc.enable()
+
+
+def test_a_start_state_is_checked_and_a_single_number_holds_for_every_joint(arm, planner):
+    """``start = (q, qd, qdd)``: a velocity or an acceleration given as one number is every joint's
+    (found by the long fuzz run: 3 rad/s crashed the braking check with an IndexError); a wrong
+    number of values, NaN or a start that is not three parts is refused, naming which part."""
+    T = pose_matrix([0.6, 0.1, 0.4], DOWN)
+    with pytest.raises(Unreachable, match='elbow_joint moves at 3 rad/s from 1.6 rad toward its limit'):
+        planner.plan_pose((HOME, 3.0, 0.0), T, 'lspb')
+    moving = planner.plan_pose((HOME, 0.05, 0.0), T, 'quintic')
+    assert moving.trajectory.start_state()[1][:arm.dof] == pytest.approx(np.full(arm.dof, 0.05))
+    for start, part in (((HOME, np.zeros(5), Z), 'start velocity'), ((HOME[:5], Z, Z), 'start position'),
+                        ((HOME, Z, np.full(6, np.nan)), 'start acceleration'), ((HOME, Z), 'start must be')):
+        with pytest.raises(ValueError, match=part):
+            planner.plan_pose(start, T, 'quintic')
+    with pytest.raises(ValueError, match='start velocity'):          # before the knot points are checked
+        cycle = PickCycle(planner, PickSettings().validate(arm))
+        cycle.plan((HOME, [0.0] * 7, Z), pose_matrix([0.7, 0.15, 0.65], DOWN))
