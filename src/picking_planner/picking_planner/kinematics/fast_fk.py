@@ -28,8 +28,6 @@ from numba import njit
 # writable, aligned, C-contiguous float64 arrays (see ArmModel.joint_frames).
 FRAMES = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
          'float64[:, :, :, ::1])'
-TOOL = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
-       'float64[:, :, ::1])'
 SINGULAR = 'void(float64[:, :, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1], ' \
            'int64, float64[::1])'
 
@@ -46,13 +44,11 @@ def pack(arm):
 
 
 class Bound:
-    """The kernels bound to one arm: ``frames(q, out)``, ``tools(q, out)`` and
-    ``min_singular_values(q, rows, out)``."""
+    """The kernels bound to one arm: ``frames(q, out)`` and ``min_singular_values(q, rows, out)``."""
 
     def __init__(self, arm):
         model = pack(arm)
         self.frames = functools.partial(frames, *model)
-        self.tools = functools.partial(tools, *model)
         self.min_singular_values = functools.partial(min_singular_values, *model)
 
 
@@ -199,27 +195,18 @@ def _smallest_column_norm(A, k, norms):
 
 @njit(FRAMES, cache=True, nogil=True, error_model='numpy')
 def frames(origins, axes, prismatic, tool, q, out):
-    """Joint and tool frames for every configuration: ``q`` (N, dof) -> ``out`` (N, dof + 1, 4, 4)."""
+    """The last k frames of the chain (every joint's after its motion, then the tool's) for every
+    configuration: ``q`` (N, dof) -> ``out`` (N, k, 4, 4); k = dof + 1 gives them all, k = 1 the
+    tool's alone (forward kinematics)."""
     n, dof = q.shape
+    skip = dof + 1 - out.shape[1]
     F, A, cs = _scratch(n, dof)
     for first in range(0, n, BLOCK):
         width = min(BLOCK, n - first)
         _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs)
         for k in range(width):
-            for i in range(dof + 1):
-                _unpack(F, i, k, out[first + k, i])
-
-
-@njit(TOOL, cache=True, nogil=True, error_model='numpy')
-def tools(origins, axes, prismatic, tool, q, out):
-    """The tool's frame alone for every configuration: ``q`` (N, dof) -> ``out`` (N, 4, 4)."""
-    n, dof = q.shape
-    F, A, cs = _scratch(n, dof)
-    for first in range(0, n, BLOCK):
-        width = min(BLOCK, n - first)
-        _chain_block(origins, axes, prismatic, tool, q, first, width, F, A, cs)
-        for k in range(width):
-            _unpack(F, dof, k, out[first + k])
+            for i in range(out.shape[1]):
+                _unpack(F, skip + i, k, out[first + k, i])
 
 
 @njit(SINGULAR, cache=True, nogil=True, error_model='numpy')

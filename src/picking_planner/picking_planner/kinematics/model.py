@@ -240,7 +240,7 @@ class ArmModel:
             T = self._joint_frames_numpy(batch)[:, -1]
         else:
             T = np.empty((batch.shape[0], 4, 4))
-            compiled.tools(_plain_floats(batch), T)
+            compiled.frames(_plain_floats(batch), T[:, None])           # the tool's frame alone
         return T[0] if q.ndim == 1 else T
 
     def jacobian(self, q):
@@ -307,12 +307,12 @@ class ArmModel:
         rng = np.random.default_rng(0)
         finite = np.isfinite(self.lower) & np.isfinite(self.upper)
         Q = rng.uniform(np.where(finite, self.lower, -np.pi), np.where(finite, self.upper, np.pi), (64, self.dof))
-        frames, tools, sigma = np.empty((64, self.dof + 1, 4, 4)), np.empty((64, 4, 4)), np.empty(64)
+        frames, tools, sigma = np.empty((64, self.dof + 1, 4, 4)), np.empty((64, 1, 4, 4)), np.empty(64)
         bound.frames(Q, frames)
-        bound.tools(Q, tools)
+        bound.frames(Q, tools)
         bound.min_singular_values(Q, 6 if self.dof >= 6 else 3, sigma)
         numpy = self._joint_frames_numpy(Q)
-        if not (np.allclose(frames, numpy, rtol=0.0, atol=1e-12) and np.array_equal(tools, frames[:, -1])
+        if not (np.allclose(frames, numpy, rtol=0.0, atol=1e-12) and np.array_equal(tools[:, 0], frames[:, -1])
                 and np.allclose(sigma, self._min_singular_values_numpy(Q), rtol=0.0, atol=1e-9)):
             warnings.warn('the compiled forward kinematics disagree with the numpy version on their self-test: '
                           'they run vectorised with numpy', RuntimeWarning, stacklevel=2)
