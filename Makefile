@@ -54,9 +54,8 @@ system: $(STAMP)
 
 # The long run of the arbitrary-input (hypothesis) tests: 10 000 examples per function.
 fuzz: $(STAMP)
-	$(BIN)/python -m pytest -q -m fuzz --hypothesis-profile=long --import-mode=importlib src/picking_planner/test \
-		src/picking_controller/test \
-		src/picking_sim/test
+	$(BIN)/python -m pytest -q -m fuzz --hypothesis-profile=long --import-mode=importlib src/picking_common/test \
+		src/picking_planner/test src/picking_controller/test src/picking_sim/test
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -r benchmarks/requirements.txt

@@ -25,7 +25,8 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from harness import fmt_time  # noqa: E402
 from rosstack import Client, Stack, ensure_rclpy, stop_all  # noqa: E402
 
-from picking_planner.ros_common import SWITCH_INTERVAL, LatestMessage  # noqa: E402
+from picking_common.run import SWITCH_INTERVAL  # noqa: E402
+from picking_common.topics import LatestMessage  # noqa: E402
 
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # Two reachable tool positions near the home pose, visited in turn.
@@ -231,8 +232,8 @@ def arms(rate, max_n, seconds):
 LOOP_SCRIPT = """
 import os, random, sys, threading, time
 sys.path[:0] = sys.argv[2:4]
-from picking_controller.timing import LoopStats
-from picking_planner.ros_common import SWITCH_INTERVAL
+from picking_common.loop_stats import LoopStats
+from picking_common.run import SWITCH_INTERVAL
 sys.setswitchinterval(SWITCH_INTERVAL)
 period, seconds, contended = 1e-3, float(sys.argv[1]), sys.argv[4] == 'contended'
 stats = LoopStats(period)

@@ -38,9 +38,9 @@ def pytest_runtest_makereport(item, call):
     report = (yield).get_result()
     if not report.failed:
         return
-    from rosstack import Process
+    from picking_planner.cli.stack import NodeProcess
     since = getattr(item, 'started_at', 0.0)
-    for proc in Process.started:
+    for proc in NodeProcess.started:
         if proc.stopped_at is None or proc.stopped_at >= since:
             lines = proc.output().splitlines()[-LOG_TAIL:]
             report.sections.append((f'{proc.name} (pid {proc.pid}) log, last {len(lines)} lines',

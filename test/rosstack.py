@@ -7,13 +7,8 @@ run's ROS_DOMAIN_ID (set in conftest.py), and is stopped by its process id.
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
-
 from contextlib import contextmanager
 
 import numpy as np
@@ -29,11 +24,13 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from picking_planner.cli import stack as launcher
+from picking_planner.cli.stack import NodeProcess, stop_all  # noqa: F401  (the tests stop processes with it)
 from picking_planner.kinematics import ArmModel
-from picking_planner.resources import config_dir, default_urdf
-from picking_planner.ros_common import LatestMessage
+from picking_planner.resources import default_urdf
+from picking_common.topics import LatestMessage
 
-BIN = Path(sys.executable).parent
+BIN = launcher.BIN
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 #: The planner's goal QoS (reliable, keep last 10 000; see picking_planner.node.BURST): a goal
 #: lost in transport during a flood must still be in our history when the planner asks again.
@@ -45,118 +42,28 @@ DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat().tolist()
 ARM = ArmModel.from_urdf(default_urdf())
 
 
-class Process:
-    """One node as a child process, with its output kept for the failure message.
-
-    Every process started is listed in ``Process.started`` with the time it
-    stopped (None while it runs): conftest.py adds the logs of those that ran
-    during a failing test to its report.
-    """
-
-    started = []
-
-    def __init__(self, name, args, log_dir, tag=0):
-        self.name = name
-        self.log = open(Path(log_dir) / f'{name}.{tag}.log', 'w')
-        self.proc = subprocess.Popen([str(BIN / name), *args], stdout=self.log, stderr=subprocess.STDOUT,
-                                     env=os.environ.copy())
-        self.stopped_at = None
-        Process.started.append(self)
-
-    @property
-    def pid(self):
-        return self.proc.pid
-
-    def stop(self, sig=signal.SIGINT, timeout=10.0):
-        """Signal by pid and wait; returns the exit code (None if it had to be killed)."""
-        return stop_all([self], sig, timeout)[0]
-
-    def _signal(self, sig):
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-
-    def _reap(self, deadline):
-        """Wait until ``deadline`` (monotonic s), then kill; the exit code, None if killed.
-        A node still running is first asked for its threads' stacks (SIGUSR1: the nodes'
-        faulthandler writes them to the log), so that a failing test shows where it hung."""
-        killed = False
-        try:
-            self.proc.wait(max(deadline - time.monotonic(), 0.0))
-        except subprocess.TimeoutExpired:
-            self.proc.send_signal(signal.SIGUSR1)
-            try:
-                self.proc.wait(1.0)
-            except subprocess.TimeoutExpired:
-                pass
-            self.proc.kill()
-            self.proc.wait()
-            killed = True
-        self.log.close()
-        if self.stopped_at is None:
-            self.stopped_at = time.monotonic()
-        return None if killed else self.proc.returncode
-
-    def output(self):
-        if not self.log.closed:
-            self.log.flush()
-        return Path(self.log.name).read_text()
+#: The nodes as processes, stopped by pid (the launcher's own).
+Process = NodeProcess
 
 
-def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
-    """Signal every process by pid at once, as Ctrl-C in a terminal does, then wait for them
-    all within one ``timeout`` (an overloaded machine stops N stacks in seconds, not N times
-    3 x 10 s); a process still running then is killed. Returns the exit codes in order
-    (None for a killed one)."""
-    for p in processes:
-        p._signal(sig)
-    deadline = time.monotonic() + timeout
-    return [p._reap(deadline) for p in processes]
-
-
-class Stack:
-    """Simulator, controller and planner in one namespace, each with its file from config/
-    (as users start them: real-time loop threads where the machine allows)."""
-
-    NODES = ('picking-sim', 'picking-controller', 'picking-planner')
+class Stack(launcher.Stack):
+    """The arm as ``picking-stack`` brings it up, at the home pose, with the planner's own file only
+    (the tests' goals assume its speed scale), and per-node extra arguments by keyword."""
 
     def __init__(self, ns, log_dir, sim_args=(), controller_args=(), planner_args=()):
-        self.ns = ns
-        self.log_dir = Path(log_dir) / ns.strip('/')
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        self.args = {'picking-sim': list(sim_args), 'picking-controller': list(controller_args),
-                     'picking-planner': list(planner_args)}
-        self.starts = 0
-        self.sim, self.controller, self.planner = (self._start(name) for name in self.NODES)
-
-    def _start(self, name):
-        config = config_dir()
-        files = {'picking-sim': ['sim.yaml'], 'picking-controller': ['controller.yaml'],
-                 'picking-planner': ['planner.yaml']}[name]
-        args = ['--ros-args', '-r', f'__ns:={self.ns}']
-        for f in files:
-            args += ['--params-file', str(config / f)]
-        if name == 'picking-sim':
-            args += ['-p', 'initial_positions:=[' + ','.join(str(v) for v in HOME + [0.09]) + ']']
-        self.starts += 1
-        return Process(name, args + self.args[name], self.log_dir, tag=self.starts)
+        super().__init__(ns, log_dir, files={'picking-planner': ('planner.yaml',)}, args={
+            'picking-sim': ['-p', 'initial_positions:=[' + ','.join(str(v) for v in HOME + [0.09]) + ']',
+                            *sim_args],
+            'picking-controller': list(controller_args), 'picking-planner': list(planner_args)})
 
     def restart_sim(self):
-        self.sim = self._start('picking-sim')
+        self.start('picking-sim')
 
     def restart_controller(self):
-        self.controller = self._start('picking-controller')
+        self.start('picking-controller')
 
     def restart_planner(self):
-        self.planner = self._start('picking-planner')
-
-    @property
-    def processes(self):
-        return [self.planner, self.controller, self.sim]
-
-    def stop(self):
-        """Stop the three nodes at once; their exit codes by name."""
-        procs = self.processes
-        return {p.name: code for p, code in zip(procs, stop_all(procs))}
+        self.start('picking-planner')
 
 
 class Client(Node):

@@ -52,7 +52,7 @@ def test_a_failed_run_reports_why_and_leaves_no_earlier_report_behind(tmp_path):
     assert 'FAILED: the planner refused the pick' in done.stdout
     report = (out / 'report.md').read_text()
     assert report.startswith('# Pick-and-place demo: FAILED') and 'the planner refused the pick' in report
-    assert '## picking-planner.log' in report and 'planning for picking_arm' in report
+    assert 'picking-planner.1.log' in report and 'planning for picking_arm' in report
     assert not (out / 'joints.png').exists()
     assert (out / 'demo.mcap').stat().st_size > 1000
     run = json.loads((out / 'run.json').read_text())

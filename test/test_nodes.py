@@ -17,7 +17,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from picking_planner.resources import config_dir
-from picking_planner.ros_common import status_values
+from picking_common.status import status_values
 from rosstack import ARM, ARM_JOINTS, BIN, HOME, Process, make_pose, reach, running_stack, settles_at
 
 
@@ -267,7 +267,8 @@ def test_the_controllers_executor_thread_runs_just_below_its_loop_when_asked(tmp
     real-time loops preempted it while it held the GIL, and the loop waited (0.15-0.23 % missed
     deadlines with three arms at 1 kHz, 0.00-0.02 % with it)."""
     ctrl = Process('picking-controller', ['--ros-args', '-r', '__ns:=/sys9', '--params-file',
-                                          str(CONFIG / 'controller.yaml'), '-p', 'executor_priority:=40'], tmp_path)
+                                          str(CONFIG / 'controller.yaml'), '-p', 'executor_priority:=40'],
+                   tmp_path / 'picking-controller.log')
     try:
         pid = ctrl.pid
         end = time.monotonic() + 30.0

@@ -8,7 +8,7 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from picking_planner.ros_common import stamp_key, status, status_values
+from picking_common.status import stamp_key, status, status_values
 from trajectory_msgs.msg import JointTrajectory
 
 from rosstack import RELIABLE, Client, Stack, ensure_rclpy, largest_step, reach, running_stack

@@ -32,6 +32,7 @@ setup(
             'picking-planner = picking_planner.node:main',
             'picking-goal = picking_planner.cli.goal:main',
             'picking-demo = picking_planner.cli.demo:main',
+            'picking-stack = picking_planner.cli.stack:main',
             'planner = picking_planner.node:main',
         ],
     },

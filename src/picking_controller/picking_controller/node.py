@@ -19,28 +19,20 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from picking_common.codec import Codec
+from picking_common.joint_state import reorder, seconds
+from picking_common.loop import PeriodicLoop, check_priority, make_realtime
+from picking_common.loop_stats import LoopStats
+from picking_common.run import run_node
+from picking_common.status import Level, stamp_key, status
+from picking_common.topics import RELIABLE, LatestMessage, newest_waiting
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner import cdr
-from picking_planner.ros_common import (ERROR, OK, WARN, LatestMessage, check_loop_phase, joint_state,
-                                        joint_state_reader, loop_origin, make_realtime, newest_waiting, reorder,
-                                        run_node, stamp_key, status)
 
 from .core import ControllerCore, Event, Tolerances
-from .timing import LoopStats
-
-LEVELS = {'OK': OK, 'WARN': WARN, 'ERROR': ERROR}
-RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-MIN_SLEEP = 5e-5     # s the loop sleeps at least per tick, even when late
-
-
-def _seconds(stamp):
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 class ControllerNode(Node):
@@ -51,16 +43,14 @@ class ControllerNode(Node):
         get = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
         urdf = get('urdf_path', '')
         self.rate = float(get('update_rate', 1000.0))
-        self.thread_priority = int(get('thread_priority', 0))
-        if not 0 <= self.thread_priority <= 99:
-            raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
-        executor_priority = int(get('executor_priority', 0))
-        if not (executor_priority == 0 or 0 < executor_priority < self.thread_priority):
+        thread_priority = check_priority(get('thread_priority', 0))
+        executor_priority = check_priority(get('executor_priority', 0), 'executor_priority')
+        if not (executor_priority == 0 or executor_priority < thread_priority):
             raise ValueError(f'executor_priority must be 0 (normal) or 1 to thread_priority - 1 '
-                             f'({self.thread_priority - 1}), got {executor_priority}')
+                             f'({thread_priority - 1}), got {executor_priority}')
         if not self.rate > 0:
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
-        self.loop_phase = check_loop_phase(get('loop_phase', -1.0))
+        loop_phase = get('loop_phase', -1.0)
         tol = Tolerances(path=get('path_tolerance', 0.1), goal=get('goal_tolerance', 0.005),
                          goal_time=get('goal_time_tolerance', 2.0),
                          stopped_velocity=get('stopped_velocity_tolerance', 0.02),
@@ -72,7 +62,7 @@ class ControllerNode(Node):
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
         self.pub_loop = self.create_publisher(DiagnosticStatus, 'controller_loop', RELIABLE)
-        self.loop_stats = LoopStats(1.0 / self.rate)
+        self.codec = Codec()
         self._splice_delay = 0.02       # s ahead that a new trajectory takes over (see _on_trajectory)
         self._commanding = False
         self.create_timer(1.0, self._report_loop)
@@ -80,14 +70,16 @@ class ControllerNode(Node):
         # message class holds the GIL for milliseconds on a few hundred points (about 4 ms for
         # 400), which the control loop would wait for.
         self.sub_trajectory = self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory,
-                                                       RELIABLE, raw=cdr.check())
+                                                       RELIABLE, raw=self.codec.raw)
         # The control thread takes the newest joint_states itself at each tick: no
         # executor callbacks (and no GIL held by another thread) at the state's rate.
-        self.states = LatestMessage(self, JointState, 'joint_states', reader=joint_state_reader())
+        self.states = LatestMessage(self, JointState, 'joint_states', reader=self.codec.state_reader())
         self._last_state = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name='control', daemon=True)
-        self._thread.start()
+        self._writer = self.codec.joint_state_writer(self.core.names)
+        self.loop = PeriodicLoop(1.0 / self.rate, self._tick, name='control', logger=self.get_logger(),
+                                 phase=loop_phase, priority=thread_priority)
+        self.loop_stats = self.loop.stats
+        self.loop.start()
         # This thread goes on to run the executor: trajectories (about 2 ms of Python each), status,
         # parameters. It shares the GIL with the loop; at normal priority, any real-time thread on
         # the machine (another arm's loops) can preempt it while it holds the GIL, and the loop
@@ -103,7 +95,7 @@ class ControllerNode(Node):
 
     def _report(self, events):
         for e in events:
-            self.pub_status.publish(status('picking_controller', LEVELS[e.level], e.message, **e.values))
+            self.pub_status.publish(status('picking_controller', e.level, e.message, **e.values))
             # One logging call per severity: rclpy ties a call site to one severity.
             if e.level == 'ERROR':
                 self.get_logger().error(e.message)
@@ -124,7 +116,7 @@ class ControllerNode(Node):
             self.get_logger().warn('ignoring joint_states with non-finite positions', throttle_duration_sec=2.0)
             return
         with self.lock:
-            events = self.core.on_state(q, qd, _seconds(msg.header.stamp), self.now())
+            events = self.core.on_state(q, qd, seconds(msg.header.stamp), self.now())
         self._report(events)
 
     def _on_trajectory(self, msg):
@@ -138,20 +130,9 @@ class ControllerNode(Node):
         # Only the newest waiting trajectory counts: a burst never queues up.
         msg = newest_waiting(self.sub_trajectory, msg, lambda old: self._report(
             [Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')]))
-        try:
-            read = cdr.read_joint_trajectory(msg) if isinstance(msg, bytes) else None
-        except ValueError:                       # points of different lengths: the message class
-            msg = deserialize_message(msg, JointTrajectory)
-            read = None
-        header = read.header if read is not None else msg.header
-        if read is not None:
-            args = (read.joint_names, read.times, read.positions, read.velocities, read.accelerations,
-                    _seconds(header.stamp))
-        else:
-            pts = msg.points
-            args = (msg.joint_names, [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in pts],
-                    [p.positions for p in pts], [p.velocities for p in pts], [p.accelerations for p in pts],
-                    _seconds(header.stamp))
+        read = self.codec.read_trajectory(msg)
+        args = read.args()
+        header = read.header
         # Every answer names the trajectory by its stamp (its sender may plan again one that came too late).
         trajectory = stamp_key(header.stamp)
         event = None
@@ -173,59 +154,36 @@ class ControllerNode(Node):
         event.values.setdefault('trajectory', trajectory)
         self._report([event])
 
-    def _loop(self):
-        """The control loop: absolute deadlines, so the rate does not drift."""
-        make_realtime(self.thread_priority, self.get_logger())
-        period = 1.0 / self.rate
-        next_t = loop_origin(period, self.loop_phase)
-        stats = self.loop_stats
-        # The command's bytes laid out once, the stamp and values written at every tick (where
-        # this middleware reads our bytes; else one message, refilled).
-        writer = cdr.JointStateWriter(self.core.names) if cdr.check() else None
-        cmd = joint_state(self.core.names, None, [], [], [])
-        while not self._stop.is_set():
-            stats.record(time.monotonic())
-            next_t += period
-            ns = time.time_ns()                  # the controller's clock (see now())
-            now = ns * 1e-9
-            with self.lock:
-                events = self.core.advance(now)  # a stall delays the trajectory: before the feedback check
-            state = self.states.take()
-            if state is not self._last_state:
-                self._last_state = state
-                self._on_state(state)
-            with self.lock:
-                events += self.core.tick(now)
-                ref, limited = self.core.command(now)
-                events += limited
-            if events:
-                self._report(events)
-            if ref is not None:
-                if not self._commanding:            # the loop figures count from the first command
-                    self._commanding = True
-                    stats.reset()
-                # Stamped with the time the reference was sampled at: the tick's time.
-                if writer is not None:
-                    self.pub_cmd.publish(writer.write(ns, *ref))
-                else:
-                    cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-                    cmd.position, cmd.velocity, cmd.effort = ref[0].tolist(), ref[1].tolist(), ref[2].tolist()
-                    self.pub_cmd.publish(cmd)
-            delay = next_t - time.monotonic()
-            if delay < -period:                  # too far behind: resynchronise, do not burst
-                next_t = loop_origin(period, self.loop_phase)
-            # Always sleep a little: a real-time thread that never sleeps starves the rest.
-            time.sleep(max(delay, MIN_SLEEP))
+    def _tick(self, deadline, due):
+        """One control period: the reference sampled at the tick's time, stamped with it."""
+        ns = time.time_ns()                      # the controller's clock (see now())
+        now = ns * 1e-9
+        with self.lock:
+            events = self.core.advance(now)      # a stall delays the trajectory: before the feedback check
+        state = self.states.take()
+        if state is not self._last_state:
+            self._last_state = state
+            self._on_state(state)
+        with self.lock:
+            events += self.core.tick(now)
+            ref, limited = self.core.command(now)
+            events += limited
+        if events:
+            self._report(events)
+        if ref is not None:
+            if not self._commanding:             # the loop figures count from the first command
+                self._commanding = True
+                self.loop_stats.reset()
+            self.pub_cmd.publish(self._writer.write(ns, *ref))
 
     def _report_loop(self):
         if self._commanding:
             s = self.loop_stats.summary()
-            level = OK if s['missed_percent'] < 0.1 else WARN
+            level = Level.OK if s['missed_percent'] < 0.1 else Level.WARN
             self.pub_loop.publish(status('picking_controller', level, LoopStats.describe(s), **s))
 
     def close(self):
-        self._stop.set()
-        self._thread.join(timeout=1.0)
+        self.loop.stop()
         self.states.destroy()
         if self._commanding:
             self.get_logger().info('control loop: ' + LoopStats.describe(self.loop_stats.summary()))

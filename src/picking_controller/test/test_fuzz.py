@@ -10,7 +10,6 @@ from hypothesis.extra import numpy as hnp
 
 from picking_controller.core import ControllerCore
 from picking_controller.sampler import from_points
-from picking_controller.timing import LoopStats
 
 pytestmark = pytest.mark.fuzz
 
@@ -43,17 +42,3 @@ def test_from_points(times, pos, vel, acc, smooth):
     except ValueError:
         return
     assert np.all(np.isfinite(traj.coeffs))
-
-
-@given(WILD, st.lists(WILD, max_size=20))
-def test_loop_stats(period, ticks):
-    try:
-        stats = LoopStats(period)
-    except ValueError:
-        return
-    for t in ticks:
-        try:
-            stats.record(t)
-        except ValueError:
-            assert not np.isfinite(t)
-    stats.summary()

@@ -24,30 +24,24 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
-from . import cdr
+from picking_common.codec import Codec
+from picking_common.joint_state import reorder
+from picking_common.run import run_node
+from picking_common.status import Level, stamp_key, status, status_values
+from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
+
 from .kinematics import ArmModel, Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .pick_cycle import PickCycle, PickSettings
 from .planning import Planner, PlannerSettings, feasible_start
 from .resources import default_urdf
-from .ros_common import (ERROR, OK, WARN, LatestMessage, joint_state_reader, newest_waiting, reorder, run_node,
-                         stamp_key, status, status_values)
 from .sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active, predict_reference
 
-RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-#: Goals and their statuses: reliable, and deep enough that a burst is kept whole (then
-#: coalesced: only the newest waiting goal is planned, the others answered as superseded).
-#: A message lost in transport (a shared-memory buffer full on a loaded machine) is sent
-#: again only while it is still in the sender's history, and Fast DDS may ask for it only
-#: at its next heartbeat (every 3 s): at 1000 goals a second, 1000 deep lost a few in
-#: 10 000 on this machine; 10 000 deep keeps 10 s (statuses and goals are about 100 bytes).
-BURST = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 #: s a plan must leave between the end of planning and its start: sending it, and the
 #: controller's checks (a few ms per hundred points).
 DELIVERY = 0.08
@@ -133,8 +127,8 @@ class PlannerNode(Node):
         self.create_timer(0.1, self._serve_pending)
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
         # message classes) where this middleware reads them back as the same messages.
-        self._cdr = cdr.check()
-        if not self._cdr:
+        self.codec = Codec()
+        if not self.codec.raw:
             self.get_logger().warning('this middleware does not read back our CDR bytes: trajectories are built as '
                                       'messages (slower)')
         self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
@@ -150,8 +144,8 @@ class PlannerNode(Node):
         self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
         # executor callbacks at their rates (rclpy spends about a millisecond on each).
-        self.states = LatestMessage(self, JointState, 'joint_states', reader=joint_state_reader())
-        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=joint_state_reader())
+        self.states = LatestMessage(self, JointState, 'joint_states', reader=self.codec.state_reader())
+        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=self.codec.state_reader())
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
                                f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')
@@ -311,7 +305,7 @@ class PlannerNode(Node):
         self.pub_status.publish(msg)
 
     def _supersede(self, kind, header):
-        self._answer(status('picking_planner', WARN, f'{kind} goal superseded by a newer goal before '
+        self._answer(status('picking_planner', Level.WARN, f'{kind} goal superseded by a newer goal before '
                             'it was planned', goal=stamp_key(header.stamp), kind=kind))
         self._superseded += 1
         if self._now() - self._superseded_logged > 1.0:
@@ -357,7 +351,7 @@ class PlannerNode(Node):
                          'no joint_states received within 2 s: the planner does not know where the arm is')
 
     def _refuse(self, kind, key, reason):
-        self._answer(status('picking_planner', ERROR, f'{kind} goal refused: {reason}', goal=key, kind=kind))
+        self._answer(status('picking_planner', Level.ERROR, f'{kind} goal refused: {reason}', goal=key, kind=kind))
         self.get_logger().error(f'{kind} goal refused: {reason}')
 
     def _handle(self, kind, header, plan_fn, attempt=0):
@@ -426,7 +420,7 @@ class PlannerNode(Node):
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
         again = ' again (the last plan reached the controller too late)' if attempt else ''
         self._answer(status(
-            'picking_planner', OK, f'{kind} goal accepted{again}: {plan.method}, {plan.duration:.3f} s',
+            'picking_planner', Level.OK, f'{kind} goal accepted{again}: {plan.method}, {plan.duration:.3f} s',
             goal=key, kind=kind, method=plan.method, duration=plan.duration, start=start.source,
             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
             segments=segments, planning_ms=planning_ms, attempt=attempt + 1, **getattr(plan, 'extra', {})))
@@ -437,7 +431,7 @@ class PlannerNode(Node):
         """Plan the newest goal again, from where the arm is now, when the controller refused its
         plan as late (too late, or stale: see LATE_REPLANS), up to LATE_REPLANS times; then the
         goal is answered as not run."""
-        if msg.level != ERROR or self._newest_plan is None:
+        if Level.of(msg.level) != Level.ERROR or self._newest_plan is None:
             return
         values = status_values(msg)
         trajectory, goal, attempt, sent = self._newest_plan
@@ -450,7 +444,7 @@ class PlannerNode(Node):
         kind, header = goal[:2]
         key = stamp_key(header.stamp)
         if attempt >= LATE_REPLANS:
-            self._answer(status('picking_planner', ERROR, f'{kind} goal not run: its plan reached the controller '
+            self._answer(status('picking_planner', Level.ERROR, f'{kind} goal not run: its plan reached the controller '
                                 f'too late {attempt + 1} times (a stalled or overloaded machine?)', goal=key, kind=kind))
             self.get_logger().error(f'{kind} goal {key}: its plan reached the controller too late '
                                     f'{attempt + 1} times; not planned again')
@@ -470,40 +464,15 @@ class PlannerNode(Node):
 
     def _publish_trajectory(self, names, stamp_ns, points):
         """The plan on ``joint_trajectory``, stamped with its start time (integer ns)."""
-        t, q, qd, qdd = points
-        if self._cdr:
-            self.pub_traj.publish(cdr.joint_trajectory(stamp_ns, '', names, t, q, qd, qdd))
-            return
-        msg = JointTrajectory()
-        msg.joint_names = names
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-        for i in range(len(t)):
-            p = JointTrajectoryPoint(positions=q[i].tolist(), velocities=qd[i].tolist(),
-                                     accelerations=qdd[i].tolist())
-            p.time_from_start.sec, p.time_from_start.nanosec = divmod(round(t[i] * 1e9), 1_000_000_000)
-            msg.points.append(p)
-        self.pub_traj.publish(msg)
+        self.pub_traj.publish(self.codec.joint_trajectory(stamp_ns, '', names, *points))
 
     def _publish_tool_path(self, q):
         """The tool poses of the plan (every other point) on ``planned_path``, for RViz or Foxglove."""
         arm_q = q[:, :self.arm.dof]
         tool = self.arm.fk(arm_q[::2] if len(arm_q) > 2 else arm_q)
         quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
-        stamp_ns = self.get_clock().now().nanoseconds
-        if self._cdr:
-            self.pub_path.publish(cdr.path(stamp_ns, self.arm.base_frame, tool[:, :3, 3], quats))
-            return
-        path = Path()
-        path.header.frame_id = self.arm.base_frame
-        path.header.stamp.sec, path.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-        for T, qt in zip(tool, quats):
-            ps = PoseStamped(header=path.header)
-            ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, T[:3, 3])
-            (ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z,
-             ps.pose.orientation.w) = map(float, qt)
-            path.poses.append(ps)
-        self.pub_path.publish(path)
-
+        self.pub_path.publish(self.codec.path(self.get_clock().now().nanoseconds, self.arm.base_frame,
+                                              tool[:, :3, 3], quats))
 
     def close(self):
         self.states.destroy()

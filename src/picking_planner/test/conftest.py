@@ -3,7 +3,7 @@ import pathlib
 import pytest
 
 from picking_planner import kinematics
-from picking_planner.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)
+from picking_common.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)
 
 CONFIG = pathlib.Path(__file__).resolve().parents[3] / 'config'
 

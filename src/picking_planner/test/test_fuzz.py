@@ -90,35 +90,6 @@ def test_via_lspb(points, durations, accel):
     assert (traj is None) == (timing is None)           # the timing refuses exactly what the trajectory does
 
 
-def _cdr_messages():
-    """Valid JointState and JointTrajectory bytes, to be damaged."""
-    from picking_planner import cdr
-    q = np.arange(6.0).reshape(2, 3)
-    return [cdr.JointStateWriter(['a', 'bb', 'ccc'], 'base').write(5, q[0], q[1], q[0]),
-            cdr.joint_trajectory(5, 'f', ['a', 'bb', 'ccc'], np.array([0.1, 0.2]), q, q, q)]
-
-
-@given(st.one_of(st.binary(max_size=300),
-                 st.tuples(st.sampled_from([0, 1]), st.integers(0, 200), st.binary(min_size=1, max_size=8),
-                           st.integers(0, 200))))
-def test_cdr_readers_refuse_any_bytes_they_cannot_read(damage):
-    """Arbitrary or damaged bytes: the readers the nodes take their messages with give
-    ValueError (the node then reads the message class) or values, never another error."""
-    from picking_planner import cdr
-    if isinstance(damage, bytes):
-        datas = [damage, b'\x00\x01\x00\x00' + damage]
-    else:
-        which, at, patch, cut = damage
-        data = _cdr_messages()[which]
-        datas = [data[:at] + patch + data[at + len(patch):], data[:len(data) - cut]]
-    for data in datas:
-        for read in (cdr.JointStateReader().read, cdr.read_joint_trajectory):
-            try:
-                read(data)
-            except ValueError:
-                pass
-
-
 @given(arrays(), arrays(1), st.one_of(st.none(), arrays()), st.one_of(st.none(), arrays()))
 def test_quintic_via(points, durations, velocities, accelerations):
     refused_or_finite(trajectory.quintic_via, points, durations, velocities, accelerations)

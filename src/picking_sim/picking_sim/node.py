@@ -13,28 +13,20 @@ import threading
 import time
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from picking_common.codec import Codec
+from picking_common.joint_state import reorder, seconds
+from picking_common.loop import PeriodicLoop
+from picking_common.run import run_node
+from picking_common.topics import LATCHED, LatestMessage
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
-from picking_planner import cdr
-from picking_planner.ros_common import (LatestMessage, check_loop_phase, joint_state, joint_state_reader,
-                                        loop_origin, make_realtime, reorder, run_node)
 
 from .servo import Servo, ServoParams
-
-#: s: a servo loop woken this much late says so (the longest such stall, at most once a second).
-STALL_REPORT = 0.02
-#: s: a loop woken that late first lets the process's other threads run this long (see _loop).
-CATCH_UP_YIELD = 0.002
-
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class SimNode(Node):
@@ -61,10 +53,6 @@ class SimNode(Node):
         self.servo = Servo(q0, dt=1.0 / p['servo_rate'], params=params,
                            command_timeout=p['command_timeout'])
         self.noise_std = float(p['noise_std'])
-        self.thread_priority = int(p['thread_priority'])
-        self.loop_phase = check_loop_phase(p['loop_phase'])
-        if not 0 <= self.thread_priority <= 99:
-            raise ValueError(f'thread_priority must be 0 (normal) or 1-99 (SCHED_FIFO), got {self.thread_priority}')
         self.rng = np.random.default_rng()
         self.publish_every = max(1, int(round(p['servo_rate'] / p['publish_rate'])))
         self.lock = threading.Lock()
@@ -73,12 +61,17 @@ class SimNode(Node):
         self.pub_description = self.create_publisher(String, 'robot_description', LATCHED)
         self.pub_description.publish(String(data=self.arm.urdf))
         # The servo thread takes the newest command itself: no 1 kHz executor callbacks.
-        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=joint_state_reader())
-        self._writer = cdr.JointStateWriter(self.names) if cdr.check() else None
+        codec = Codec()
+        self.commands = LatestMessage(self, JointState, 'joint_commands', reader=codec.state_reader())
+        self._writer = codec.joint_state_writer(self.names)
         self._applied = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name='servo', daemon=True)
-        self._thread.start()
+        self._steps = 0
+        self._commanded = False
+        # The servo's time is the ROS clock: a loop deadline (monotonic) plus this offset.
+        self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+        self.loop = PeriodicLoop(self.servo.dt, self._tick, name='servo', logger=self.get_logger(),
+                                 phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled)
+        self.loop.start()
         self.get_logger().info(
             f'simulating {self.arm.name} ({n} joints) at {p["servo_rate"]:g} Hz, '
             f'publishing joint_states at {p["publish_rate"]:g} Hz from {np.round(q0, 4).tolist()}')
@@ -111,55 +104,30 @@ class SimNode(Node):
                 if len(msg.velocity) else None
             qdd = reorder(msg.name, msg.effort, self.names, 'joint_commands effort') \
                 if len(msg.effort) else None
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            self.servo.command(q, qd, qdd, age=t_state - stamp)
+            self.servo.command(q, qd, qdd, age=t_state - seconds(msg.header.stamp))
         except (ValueError, IndexError) as exc:
             self.get_logger().warn(f'ignoring joint_commands: {exc}', throttle_duration_sec=2.0)
 
-    def _loop(self):
-        """Fixed-step servo at absolute deadlines; catches up when the OS wakes it late.
-
-        Step ``k`` ends at ``t0 + k dt`` on the ROS clock: that is the stamp of the
-        state it produces, and commands are moved on to it from their own stamps.
-        """
-        make_realtime(self.thread_priority, self.get_logger())
+    def _tick(self, deadline, due):
+        """The servo steps due by ``deadline``, the newest command moved on to the state's time first:
+        after a stall the missed steps run at once, the reference following the command through them."""
+        t_deadline = deadline + self._clock_offset
         dt = self.servo.dt
-        now = time.monotonic()
-        start = loop_origin(dt, self.loop_phase, now)
-        t0 = self.get_clock().now().nanoseconds * 1e-9 - (now - start)    # the ROS time at start
-        done = 0
-        commanded = False
-        reported, stalls, worst = -np.inf, 0, 0.0      # stalls are reported at most once a second
-        while not self._stop.is_set():
-            due = int((time.monotonic() - start) / dt) + 1 - done
-            if due * dt > STALL_REPORT:
-                stalls, worst = stalls + 1, max(worst, due * dt)
-                # Woken far behind: the whole process may have been stopped, its DDS threads too.
-                # Let them take in the commands sent meanwhile, then catch up along the newest.
-                time.sleep(CATCH_UP_YIELD)
-                due = int((time.monotonic() - start) / dt) + 1 - done
-            if stalls and time.monotonic() - reported >= 1.0:
-                reported = time.monotonic()
-                self.get_logger().warn(
-                    f'servo loop stalled for {worst:.3f} s'
-                    + (f' (the longest of {stalls} stalls over {STALL_REPORT * 1e3:g} ms since the last report)'
-                       if stalls > 1 else '')
-                    + ': ran the missed steps at once, the reference following the commands through them')
-                stalls, worst = 0, 0.0
-            if due > 0:
-                with self.lock:
-                    self._apply_newest_command(t0 + done * dt)
-                    for _ in range(due):
-                        self.servo.step()
-                        done += 1
-                        if done % self.publish_every == 0:
-                            self._publish(t0 + done * dt)
-                    if self.servo.commanded != commanded:
-                        commanded = self.servo.commanded
-                        self._say_commanded(commanded)
-            next_deadline = start + (done + 1) * dt
-            # Always sleep a little: a real-time thread that never sleeps starves the rest.
-            time.sleep(max(next_deadline - time.monotonic(), 5e-5))
+        with self.lock:
+            self._apply_newest_command(t_deadline - due * dt)
+            for i in range(due):
+                self.servo.step()
+                self._steps += 1
+                if self._steps % self.publish_every == 0:
+                    self._publish(t_deadline - (due - 1 - i) * dt)
+            if self.servo.commanded != self._commanded:
+                self._commanded = self.servo.commanded
+                self._say_commanded(self._commanded)
+
+    def _say_stalled(self, worst, count):
+        more = f' (the longest of {count} stalls since the last report)' if count > 1 else ''
+        self.get_logger().warn(f'servo loop stalled for {worst:.3f} s{more}: ran the missed steps at once, '
+                               'the reference following the commands through them')
 
     def _say_commanded(self, commanded):
         if commanded:
@@ -174,16 +142,10 @@ class SimNode(Node):
             q = q + self.rng.normal(0.0, self.noise_std, q.shape)
         sec = int(t_state // 1)
         nanosec = min(int(round((t_state - sec) * 1e9)), 999_999_999)
-        if self._writer is not None:
-            self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd,
-                                                       self.servo.torque))
-            return
-        stamp = Time(sec=sec, nanosec=nanosec)
-        self.pub_states.publish(joint_state(self.names, stamp, q, self.servo.qd, self.servo.torque))
+        self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd, self.servo.torque))
 
     def close(self):
-        self._stop.set()
-        self._thread.join(timeout=1.0)
+        self.loop.stop()
         self.commands.destroy()
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import threading
@@ -24,55 +23,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-HERE = Path(sys.executable).parent
-
-
-def log(msg):
-    print(f'[demo {time.strftime("%H:%M:%S")}] {msg}', flush=True)
-
-
-def load_demo_settings(config):
-    """The apple pose and the demo's own values from pick_cycle.yaml (``picking_demo`` section)."""
-    data = yaml.safe_load((config / 'pick_cycle.yaml').read_text()) or {}
-    demo = (data.get('picking_demo') or {}).get('ros__parameters') or {}
-    planner = next((v.get('ros__parameters', {}) for k, v in data.items() if k.endswith('picking_planner')), {})
-    return demo, planner
-
-
-class Stack:
-    """The three nodes as child processes, stopped by pid."""
-
-    def __init__(self, config, out, initial):
-        self.out = out
-        self.procs = {}
-        params = {'picking-sim': ['--params-file', str(config / 'sim.yaml'), '-p',
-                                  'initial_positions:=[' + ','.join(map(str, initial)) + ']'],
-                  'picking-controller': ['--params-file', str(config / 'controller.yaml')],
-                  'picking-planner': ['--params-file', str(config / 'planner.yaml'),
-                                      '--params-file', str(config / 'pick_cycle.yaml')]}
-        for name, args in params.items():
-            logf = open(out / f'{name}.log', 'w')
-            self.procs[name] = (subprocess.Popen([str(HERE / name), '--ros-args', *args], stdout=logf,
-                                                 stderr=subprocess.STDOUT, env=os.environ.copy()), logf)
-            log(f'started {name} (pid {self.procs[name][0].pid})')
-
-    def alive(self):
-        return {n: p.poll() is None for n, (p, _) in self.procs.items()}
-
-    def stop(self):
-        codes = {}
-        for name, (proc, logf) in reversed(list(self.procs.items())):
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                try:
-                    proc.wait(10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-            logf.close()
-            codes[name] = proc.returncode
-            log(f'stopped {name} (pid {proc.pid}): exit code {proc.returncode}')
-        return codes
+from .demo_report import analyse_and_report, load_demo_settings, log
+from .stack import BIN as HERE, Stack
 
 
 def run_ros_part(args, config, out, demo, stack_initial):
@@ -90,7 +42,11 @@ def run_ros_part(args, config, out, demo, stack_initial):
     from ..recording import Recorder
 
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    stack = Stack(config, out, stack_initial)
+    # The arm as picking-stack brings it up, at the pick cycle's home, its logs beside the report.
+    stack = Stack('/', out / 'logs', config=config, args={
+        'picking-sim': ['-p', 'initial_positions:=[' + ','.join(map(str, stack_initial)) + ']']})
+    for name, p in stack.nodes.items():
+        log(f'started {name} (pid {p.pid})')
     events = {'ok': False}
     rclpy.init()
     node = rclpy.create_node(f'picking_demo_{os.getpid()}')
@@ -175,6 +131,8 @@ def run_ros_part(args, config, out, demo, stack_initial):
         node.destroy_node()
         rclpy.try_shutdown()
         events['exit_codes'] = stack.stop()
+        for name, code in events['exit_codes'].items():
+            log(f'stopped {name} (pid {stack.nodes[name].pid}): exit code {code}')
     return rec, events
 
 
@@ -215,9 +173,9 @@ def failure_report(rec, events, out):
     except Exception as exc:                 # the report of a failure must not fail itself
         lines.append(f'- the recording could not be written: {exc}')
     for name in ('picking-sim', 'picking-controller', 'picking-planner'):
-        logfile = out / f'{name}.log'
-        tail = logfile.read_text(errors='replace').splitlines()[-LOG_TAIL:] if logfile.exists() else []
-        lines += ['', f'## {name}.log (last {len(tail)} lines)', '', '```', *tail, '```']
+        for logfile in sorted((out / 'logs').glob(f'*/{name}.*.log')):
+            tail = logfile.read_text(errors='replace').splitlines()[-LOG_TAIL:]
+            lines += ['', f'## {logfile.relative_to(out)} (last {len(tail)} lines)', '', '```', *tail, '```']
     (out / 'report.md').write_text('\n'.join(lines) + '\n')
 
 
@@ -230,7 +188,6 @@ def main(argv=None):
     os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 90 + 10))
     os.environ.setdefault('MPLBACKEND', 'Agg')
     from ..resources import config_dir
-    from .demo_report import analyse_and_report
     config = config_dir()
     args.out.mkdir(parents=True, exist_ok=True)
     demo, planner_params = load_demo_settings(config)

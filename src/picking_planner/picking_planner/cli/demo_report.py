@@ -3,14 +3,28 @@
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
+import yaml
 from scipy.spatial.transform import Rotation
 
 from ..analysis import cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners, tracking_error
 from ..kinematics import ArmModel, pose_matrix
 from ..pick_cycle import PickCycle, PickSettings
 from ..planning import Planner, PlannerSettings
+
+
+def log(msg):
+    print(f'[demo {time.strftime("%H:%M:%S")}] {msg}', flush=True)
+
+
+def load_demo_settings(config):
+    """The apple pose and the demo's own values from pick_cycle.yaml (``picking_demo`` section)."""
+    data = yaml.safe_load((config / 'pick_cycle.yaml').read_text()) or {}
+    demo = (data.get('picking_demo') or {}).get('ros__parameters') or {}
+    planner = next((v.get('ros__parameters', {}) for k, v in data.items() if k.endswith('picking_planner')), {})
+    return demo, planner
 
 
 def _stamp(s):
@@ -81,8 +95,6 @@ def compare_methods(arm, planner_params, apple_T):
 def analyse_and_report(rec, events, config, out, quick=False):
     """Write report.md, report.json, plots and demo.mcap; print the report; True if all checks pass."""
     from ..plots import plot_corners, plot_path_3d, plot_profiles
-    from .demo import load_demo_settings, log
-    import yaml
     arm = ArmModel.from_urdf(config / 'picking_arm.urdf')
     demo, planner_params = load_demo_settings(config)
     planner_yaml = yaml.safe_load((config / 'planner.yaml').read_text())

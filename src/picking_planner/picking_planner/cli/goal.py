@@ -33,7 +33,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from scipy.spatial.transform import Rotation
 
-from ..ros_common import stamp_key, status_values
+from picking_common.status import stamp_key, status_values
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4

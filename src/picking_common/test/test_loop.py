@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from picking_controller.timing import LoopStats
+from picking_common.loop_stats import LoopStats
 
 
 def test_regular_ticks_with_known_errors():
@@ -75,7 +75,7 @@ def test_bad_period(period):
 def test_a_phased_loop_counts_from_its_own_moment_of_the_period(phase, now):
     """The origin lies ``phase`` of a period past a whole number of periods, within one period
     before ``now``: loops given different phases wake at different moments whenever they start."""
-    from picking_planner.ros_common import loop_origin
+    from picking_common.loop import loop_origin
     period = 1e-3
     origin = loop_origin(period, phase, now)
     assert now - period < origin <= now + 1e-12
@@ -83,9 +83,54 @@ def test_a_phased_loop_counts_from_its_own_moment_of_the_period(phase, now):
 
 
 def test_a_free_running_loop_counts_from_now_and_a_phase_outside_the_period_is_refused():
-    from picking_planner.ros_common import check_loop_phase, loop_origin
+    from picking_common.loop import check_loop_phase, loop_origin
     assert loop_origin(1e-3, -1.0, 3.14159) == 3.14159
     assert check_loop_phase(-1) == -1.0 and check_loop_phase(0.5) == 0.5
     for bad in (1.0, -0.5, 2.0, math.nan):
         with pytest.raises(ValueError, match='loop_phase must be -1'):
             check_loop_phase(bad)
+
+
+class _Logger:
+    def __init__(self):
+        self.warnings = []
+
+    def warning(self, text):
+        self.warnings.append(text)
+
+
+def test_the_periodic_loop_serves_every_period_once_and_a_stall_in_one_tick():
+    """The deadlines are absolute: after a tick that overran many periods, the next call is told
+    how many periods passed (no burst of calls), and the stall is reported."""
+    from picking_common.loop import PeriodicLoop
+    import threading
+    import time
+    calls, stalls, done = [], [], threading.Event()
+
+    def tick(deadline, due):
+        calls.append((deadline, due))
+        if len(calls) == 5:
+            time.sleep(0.1)                    # a stall of about 50 periods
+        if len(calls) == 12:
+            done.set()
+
+    loop = PeriodicLoop(2e-3, tick, name='test', logger=_Logger(), on_stall=lambda w, n: stalls.append((w, n)))
+    loop.start()
+    assert done.wait(5.0)
+    loop.stop()
+    deadlines = [d for d, _ in calls[:12]]
+    assert all(b > a for a, b in zip(deadlines, deadlines[1:]))
+    # Every deadline lies on the loop's grid, and the periods told add up to the grid index.
+    k = [round((d - loop.origin) / 2e-3) for d in deadlines]
+    assert all(abs(d - loop.origin - i * 2e-3) < 1e-9 for d, i in zip(deadlines, k))
+    assert sum(due for _, due in calls[:12]) == k[11]
+    assert calls[5][1] >= 40                   # the stall's periods came in one call
+    assert stalls and stalls[0][0] >= 0.05
+
+
+def test_the_periodic_loop_refuses_a_bad_period_priority_or_phase():
+    from picking_common.loop import PeriodicLoop
+    for kwargs in ({'period': 0.0}, {'period': 1e-3, 'priority': 100}, {'period': 1e-3, 'phase': 1.5}):
+        period = kwargs.pop('period')
+        with pytest.raises(ValueError):
+            PeriodicLoop(period, lambda d, n: None, name='x', logger=_Logger(), **kwargs)

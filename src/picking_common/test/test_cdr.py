@@ -6,7 +6,7 @@ from nav_msgs.msg import Path
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from picking_planner import cdr
+from picking_common import cdr
 
 
 def _classic(stamp_ns, frame_id, names, t, q, qd, qdd):

@@ -1,4 +1,4 @@
-"""Shared test settings of the three packages (imported by their conftest.py files).
+"""Shared test settings of the packages (imported by their conftest.py files).
 
 Hypothesis profiles: ``default`` (60 examples a property: quick, for every test run)
 and ``long`` (10 000: ``make fuzz``, i.e. ``pytest -m fuzz --hypothesis-profile=long``),

@@ -1,0 +1,76 @@
+"""QoS profiles and taking the newest message of a topic."""
+
+from __future__ import annotations
+
+import rclpy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+
+#: Trajectories, statuses, paths: reliable, a few deep.
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Goals and their answers: reliable, and deep enough that a burst is kept whole (then coalesced:
+#: only the newest waiting goal is planned). A message lost in transport is sent again only while
+#: it is still in the sender's history, which must outlast Fast DDS's heartbeat period under a flood.
+BURST = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
+#: What a late joiner must still get, as robot_state_publisher latches ``robot_description``.
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: A fast stream of which only the newest sample matters.
+NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
+
+
+def newest_waiting(sub, msg, on_older):
+    """The newest message waiting on subscription ``sub``: ``msg`` (just delivered by the
+    executor) or a later one taken at once; ``on_older`` is called with each older one.
+
+    A burst then never builds a backlog: the newest is handled, every older one is
+    answered (as superseded) without being worked on.
+    """
+    while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+        on_older(msg)
+        msg = got[0]
+    return msg
+
+
+class LatestMessage:
+    """The newest message of a fast topic, taken on demand instead of by a callback.
+
+    A 1 kHz stream costs an rclpy executor a large share of a core in callbacks; a reader that
+    needs only the newest sample (a servo loop, a planner when a goal comes) keeps a depth-1
+    subscription on a helper node that no executor spins, and takes from it when it wants. The
+    helper is named ``<node>_<topic>_reader`` in the node's namespace, so graph tools show who
+    reads the topic. With a ``reader`` (bytes -> message-like object, ValueError if it cannot),
+    the messages are taken as bytes and only the newest is read; bytes the reader refuses are
+    read by the message class instead.
+    """
+
+    def __init__(self, parent, msg_type, topic, reader=None):
+        self.msg_type = msg_type
+        self.reader = reader
+        self.node = rclpy.create_node(f'{parent.get_name()}_{topic.strip("/").replace("/", "_")}_reader',
+                                      namespace=parent.get_namespace(), context=parent.context)
+        self.sub = self.node.create_subscription(msg_type, topic, lambda msg: None, NEWEST, raw=reader is not None)
+        self.last = None
+
+    def take(self):
+        """The newest message received so far (None before the first)."""
+        raw = self.reader is not None
+        newest = None
+        while True:
+            got = self.sub.handle.take_message(self.msg_type, raw)
+            if got is None:
+                break
+            newest = got[0]
+        if newest is not None:
+            if raw:
+                try:
+                    newest = self.reader(newest)
+                except ValueError:
+                    newest = deserialize_message(newest, self.msg_type)
+            self.last = newest
+        return self.last
+
+    def publisher_count(self):
+        return self.sub.get_publisher_count()
+
+    def destroy(self):
+        self.node.destroy_node()

@@ -1,0 +1,150 @@
+"""The layout holds itself: what each part of the workspace may import (docs/architecture.md).
+
+The imports are read from the source (every ``import`` and ``from ... import`` statement,
+at any depth, relative ones resolved), not by importing the modules.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / 'src'
+#: The planner's pure core: maths, usable from a notebook, tested without ROS.
+PURE_CORE = ('picking_planner.trajectory', 'picking_planner.geometry', 'picking_planner.kinematics',
+             'picking_planner.pick_cycle', 'picking_planner.planning', 'picking_planner.goal_policy',
+             'picking_planner.sent_plans', 'picking_planner.analysis', 'picking_planner.resources',
+             'picking_planner.compiled', 'picking_controller.core', 'picking_controller.sampler',
+             'picking_sim.servo')
+#: Modules that speak ROS: the middleware and message packages.
+ROS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs',
+       'trajectory_msgs', 'diagnostic_msgs', 'visualization_msgs', 'control_msgs', 'action_msgs',
+       'picking_interfaces', 'picking_common')
+#: What the controller and the simulator may take from the planner package: its maths.
+PLANNER_MATHS = ('picking_planner.trajectory', 'picking_planner.kinematics', 'picking_planner.geometry',
+                 'picking_planner.resources', 'picking_planner.compiled')
+
+
+def module_name(path):
+    rel = path.relative_to(SRC).with_suffix('')
+    parts = rel.parts[1:]                          # drop the package folder (src/<pkg>/<pkg>/...)
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def imports_of(path, name):
+    """Every module ``path`` (the module ``name``) imports, as absolute names."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split('.')
+                base = base[:len(base) - node.level + 1]
+                stem = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                stem = node.module
+            found.append(stem)
+            found += [f'{stem}.{alias.name}' for alias in node.names]
+    return found
+
+
+def modules():
+    out = {}
+    for path in sorted(SRC.glob('*/*/**/*.py')):
+        if '/test/' in str(path) or path.parts[-2] == 'test' or 'build' in path.parts:
+            continue
+        out[module_name(path)] = path
+    return out
+
+
+def under(name, prefixes):
+    return any(name == p or name.startswith(p + '.') for p in prefixes)
+
+
+def violations(mods, rule):
+    """``(module, import)`` pairs that break ``rule(module, imported) -> bool`` (True: forbidden)."""
+    return [(name, imp) for name, path in mods.items() for imp in imports_of(path, name) if rule(name, imp)]
+
+
+def pure_core_imports_ros(module, imported):
+    return under(module, PURE_CORE) and under(imported, ROS)
+
+
+def controller_or_sim_reach_into_the_planner(module, imported):
+    return (under(module, ('picking_controller', 'picking_sim')) and under(imported, ('picking_planner',))
+            and not under(imported, PLANNER_MATHS))
+
+
+def common_knows_the_arm(module, imported):
+    return under(module, ('picking_common',)) and under(imported, ('picking_planner', 'picking_controller',
+                                                                     'picking_sim'))
+
+
+RULES = [pure_core_imports_ros, controller_or_sim_reach_into_the_planner, common_knows_the_arm]
+
+
+@pytest.mark.parametrize('rule', RULES, ids=lambda r: r.__name__)
+def test_no_module_breaks_the_rule(rule):
+    assert violations(modules(), rule) == []
+
+
+def test_there_is_no_import_cycle_between_modules():
+    mods = modules()
+    graph = {name: {imp for imp in imports_of(path, name) if imp in mods and imp != name}
+             for name, path in mods.items()}
+    # Package __init__ files re-export their modules: an edge into a package's own children is not a cycle.
+    done, stack = set(), []
+
+    def visit(n):
+        if n in stack:
+            cycle = stack[stack.index(n):] + [n]
+            if not all(b.startswith(a + '.') or a.startswith(b + '.') for a, b in zip(cycle, cycle[1:])):
+                raise AssertionError(f'import cycle: {" -> ".join(cycle)}')
+            return
+        if n in done:
+            return
+        stack.append(n)
+        for m in sorted(graph[n]):
+            visit(m)
+        stack.pop()
+        done.add(n)
+
+    for n in sorted(graph):
+        visit(n)
+
+
+@pytest.mark.parametrize('rule, module, source', [
+    (pure_core_imports_ros, 'picking_planner.trajectory.lspb', 'import rclpy\n'),
+    (pure_core_imports_ros, 'picking_planner.pick_cycle', 'from sensor_msgs.msg import JointState\n'),
+    (pure_core_imports_ros, 'picking_controller.core', 'from picking_common.status import Level\n'),
+    (controller_or_sim_reach_into_the_planner, 'picking_controller.node', 'from picking_planner.node import PlannerNode\n'),
+    (controller_or_sim_reach_into_the_planner, 'picking_sim.node', 'from picking_planner.cli import demo\n'),
+    (common_knows_the_arm, 'picking_common.loop', 'from picking_planner.kinematics import ArmModel\n'),
+])
+def test_each_rule_catches_a_forbidden_import(tmp_path, rule, module, source):
+    """The rules are not vacuous: a module given one forbidden import breaks its rule."""
+    mods = modules()
+    assert module in mods
+    assert violations(mods, rule) == []
+    bad = tmp_path / mods[module].name
+    bad.write_text(mods[module].read_text() + '\n' + source)
+    assert violations({**mods, module: bad}, rule)
+
+
+def test_a_cycle_is_caught(tmp_path):
+    mods = modules()
+    a, b = tmp_path / 'a.py', tmp_path / 'b.py'
+    a.write_text('from picking_planner import zz_b\n')
+    b.write_text('from picking_planner import zz_a\n')
+    graph_mods = {**mods, 'picking_planner.zz_a': a, 'picking_planner.zz_b': b}
+    import test_architecture as me
+    original = me.modules
+    me.modules = lambda: graph_mods
+    try:
+        with pytest.raises(AssertionError, match='import cycle'):
+            me.test_there_is_no_import_cycle_between_modules()
+    finally:
+        me.modules = original
