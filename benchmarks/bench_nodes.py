@@ -15,19 +15,20 @@ from pathlib import Path
 
 import numpy as np
 
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from scipy.spatial.transform import Rotation
+from trajectory_msgs.msg import JointTrajectory
+
+from harness import fmt_time
+from picking_common.run import SWITCH_INTERVAL
+from picking_common.topics import BURST, LatestMessage
+from picking_planner.cli.stack import Stack, stop_all
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'test'))
-
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
-
-from harness import fmt_time  # noqa: E402
-from rosstack import Client, Stack, ensure_rclpy, stop_all  # noqa: E402
-
-from picking_common.run import SWITCH_INTERVAL  # noqa: E402
-from picking_common.topics import LatestMessage  # noqa: E402
-
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # Two reachable tool positions near the home pose, visited in turn.
 POSES = ([0.55, 0.10, 0.45], [0.50, -0.10, 0.40])
@@ -41,23 +42,56 @@ def cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
+
+
 class Watcher:
-    """A client that also times trajectories and keeps the controller's loop figures."""
+    """Sends pose goals to one arm, times its trajectories and keeps its controller's loop figures."""
 
     def __init__(self, ns):
-        self.client = Client(ns)
+        if not rclpy.ok():
+            rclpy.init()
+        self.node = rclpy.create_node(f'bench_watcher_{os.getpid()}_{ns.strip("/")}', namespace=ns)
         self.arrivals = []
         # Raw: the arrival time, without this client's own (slow, Python) deserialisation in it.
-        self.client.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE,
-                                        raw=True)
+        self.node.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE, raw=True)
+        self.answers = []
+        self.node.create_subscription(DiagnosticStatus, 'planner_status', self.answers.append, BURST)
+        self.pub_pose = self.node.create_publisher(PoseStamped, 'goal_pose', BURST)
         # The controller's loop figures, taken on demand (no executor callback to starve when
-        # several stacks load the machine: an N >= 2 run used to lose them).
-        self.loop_tap = LatestMessage(self.client, DiagnosticStatus, 'controller_loop')
+        # several stacks load the machine).
+        self.loop_tap = LatestMessage(self.node, DiagnosticStatus, 'controller_loop')
         self.event = threading.Event()
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        while not self._closing.is_set():
+            self._executor.spin_once(timeout_sec=0.05)
 
     def _on_trajectory(self, msg):
         self.arrivals.append(time.monotonic())
         self.event.set()
+
+    def wait_ready(self, timeout):
+        """Until the planner hears this watcher's goals."""
+        end = time.monotonic() + timeout
+        while self.pub_pose.get_subscription_count() == 0:
+            if time.monotonic() > end:
+                raise RuntimeError(f'no planner subscribed to {self.pub_pose.topic_name} within {timeout:g} s')
+            time.sleep(0.05)
+
+    def send_pose(self, xyz):
+        msg = PoseStamped()
+        msg.header.frame_id = 'base_link'
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = map(float, xyz)
+        (msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z,
+         msg.pose.orientation.w) = map(float, DOWN)
+        self.pub_pose.publish(msg)
 
     def loop_report_after(self, previous, timeout=10.0):
         """The figures of the first controller_loop report newer than the message ``previous``
@@ -71,8 +105,11 @@ class Watcher:
         return None
 
     def close(self):
+        self._closing.set()
+        self._thread.join(timeout=10.0)
+        self._executor.shutdown()
         self.loop_tap.destroy()
-        self.client.close()
+        self.node.destroy_node()
 
 
 def _stacks(n, rate, log_dir, phased=True):
@@ -84,31 +121,32 @@ def _stacks(n, rate, log_dir, phased=True):
         cp, sp = ((i / n, (i + 0.5) / n) if phased else (-1.0, -1.0))
         rate_args = ('-p', f'update_rate:={rate}', '-p', 'thread_priority:=50', '-p', 'executor_priority:=40',
                      '-p', f'loop_phase:={cp}')
-        sim_args = ('-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}', '-p', 'thread_priority:=49',
+        sim_args = ('-p', 'initial_positions:=[0.0,0.2,1.6,0.0,1.3,0.0,0.09]', '-p', f'servo_rate:={rate}', '-p', f'publish_rate:={min(100.0, rate)}', '-p', 'thread_priority:=49',
                     '-p', f'loop_phase:={sp}')
-        stacks.append(Stack(f'/bench{i}', log_dir, sim_args=sim_args, controller_args=rate_args))
+        stacks.append(Stack(f'/bench{i}', log_dir, files={'picking-planner': ('planner.yaml',)},
+                            args={'picking-sim': list(sim_args), 'picking-controller': list(rate_args)}))
     return stacks
 
 
 def goal_latency(n_goals=200, gap=0.05):
     """Publish pose goals one by one; time from publish to the JointTrajectory's arrival."""
-    ensure_rclpy()
     with tempfile.TemporaryDirectory() as log_dir:
         (stack,) = _stacks(1, 1000.0, log_dir)
         watcher = Watcher('/bench0')
         try:
-            watcher.client.wait_ready(60.0)
+            stack.wait_ready(60.0)
+            watcher.wait_ready(60.0)
             lat, lost = [], 0
             for i in range(n_goals + 5):
                 watcher.event.clear()
-                mark = watcher.client.mark()
+                mark = len(watcher.answers)
                 t0 = time.monotonic()
-                watcher.client.send_pose(POSES[i % 2])
+                watcher.send_pose(POSES[i % 2])
                 if not watcher.event.wait(2.0):
                     lost += 1
-                    answers = watcher.client.planner_status[mark['planner']:]
+                    answers = watcher.answers[mark:]
                     print(f'    goal {i}: no trajectory within 2 s; planner said: '
-                          f'{answers[0][1].message if answers else "nothing"}', flush=True)
+                          f'{answers[0].message if answers else "nothing"}', flush=True)
                     continue
                 if i >= 5:                            # the first few warm the caches up
                     lat.append(watcher.arrivals[-1] - t0)
@@ -138,16 +176,16 @@ def run_stacks(n, rate, seconds, goal_every=2.0, ready_timeout=READY_TIMEOUT):
     commanding) and its process CPU over the window, % of one core. Raises
     StacksNotReady if they are not all up within ``ready_timeout`` s.
     """
-    ensure_rclpy()
     with tempfile.TemporaryDirectory() as log_dir:
         stacks = _stacks(n, rate, log_dir)
         watchers = []
         try:
             watchers = [Watcher(s.ns) for s in stacks]
-            for w in watchers:
+            for s, w in zip(stacks, watchers):
                 try:
-                    w.client.wait_ready(ready_timeout)
-                except AssertionError as exc:
+                    s.wait_ready(ready_timeout)
+                    w.wait_ready(ready_timeout)
+                except RuntimeError as exc:
                     raise StacksNotReady(f'{n} stacks at {rate:g} Hz: {exc}') from None
             time.sleep(1.0)
             cpu0 = [cpu_seconds(s.controller.pid) for s in stacks]
@@ -155,7 +193,7 @@ def run_stacks(n, rate, seconds, goal_every=2.0, ready_timeout=READY_TIMEOUT):
             k = 0
             while time.monotonic() - t0 < seconds:
                 for w in watchers:
-                    w.client.send_pose(POSES[k % 2])
+                    w.send_pose(POSES[k % 2])
                 k += 1
                 time.sleep(goal_every)
             wall = time.monotonic() - t0
@@ -231,11 +269,11 @@ def arms(rate, max_n, seconds):
 
 LOOP_SCRIPT = """
 import os, random, sys, threading, time
-sys.path[:0] = sys.argv[2:4]
+sys.path[:0] = sys.argv[2:3]
 from picking_common.loop_stats import LoopStats
 from picking_common.run import SWITCH_INTERVAL
 sys.setswitchinterval(SWITCH_INTERVAL)
-period, seconds, contended = 1e-3, float(sys.argv[1]), sys.argv[4] == 'contended'
+period, seconds, contended = 1e-3, float(sys.argv[1]), sys.argv[3] == 'contended'
 stats = LoopStats(period)
 done = threading.Event()
 def loop():
@@ -283,8 +321,7 @@ def contended_loop(seconds):
 
 def _loop_figures(seconds, mode):
     import subprocess
-    out = subprocess.run([sys.executable, '-c', LOOP_SCRIPT, str(seconds), str(ROOT / 'src' / 'picking_controller'),
-                          str(ROOT / 'src' / 'picking_planner'), mode],
+    out = subprocess.run([sys.executable, '-c', LOOP_SCRIPT, str(seconds), str(ROOT / 'src' / 'picking_common'), mode],
                          capture_output=True, text=True, timeout=seconds + 30)
     p50, p99, worst, missed = map(float, out.stdout.split())
     return p50, p99, worst, missed

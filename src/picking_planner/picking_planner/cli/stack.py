@@ -120,7 +120,7 @@ class Stack:
 
     ``args`` maps an executable (``'picking-sim'``, ...) to extra ROS arguments (``['-p',
     'update_rate:=250.0']``); ``files`` to the parameter files it gets instead of the shipped ones.
-    Node logs go to ``log_dir/<ns>/<executable>.<n>.log`` (``n`` counts the starts).
+    Node logs go to ``log_dir/<ns>/<executable>.<n>.log`` (``n`` counts that node's starts).
     """
 
     def __init__(self, ns='/', log_dir='log/stack', args=None, files=None, config=None, echo=False):
@@ -132,7 +132,7 @@ class Stack:
         self.args = {name: list((args or {}).get(name, ())) for name in NODES}
         self.files = {name: tuple((files or {}).get(name, NODES[name][1])) for name in NODES}
         self.echo = echo
-        self.starts = 0
+        self.starts = dict.fromkeys(NODES, 0)
         self.nodes = {}
         for name in NODES:
             self.start(name)
@@ -142,9 +142,9 @@ class Stack:
         args = ['--ros-args', '-r', f'__ns:={self.ns}']
         for f in self.files[name]:
             args += ['--params-file', str(self.config / f)]
-        self.starts += 1
+        self.starts[name] += 1
         self.nodes[name] = NodeProcess(name, args + self.args[name],
-                                       self.log_dir / f'{name}.{self.starts}.log', echo=self.echo)
+                                       self.log_dir / f'{name}.{self.starts[name]}.log', echo=self.echo)
         return self.nodes[name]
 
     @property
