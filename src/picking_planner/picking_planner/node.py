@@ -146,7 +146,7 @@ class PlannerNode(Node):
     def _now(self):
         return time.monotonic()
 
-    def _clock(self):
+    def _ros_now(self):
         """The controller's clock (the ROS clock), s."""
         return self.get_clock().now().nanoseconds * 1e-9
 
@@ -173,7 +173,7 @@ class PlannerNode(Node):
         if msg is None:
             return None
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        if self._clock() - stamp > self.get_parameter('reference_timeout').value:
+        if self._ros_now() - stamp > self.get_parameter('reference_timeout').value:
             return None                      # no controller is publishing: start from the measurement
         try:
             q = reorder(msg.name, msg.position, self.names, 'joint_commands')
@@ -275,9 +275,9 @@ class PlannerNode(Node):
             delay = policy.delay(goal)
             ref = self._reference()
             for _ in range(4):
-                start = policy.start_state(self._clock() + delay, ref, measured[0])
+                start = policy.start_state(self._ros_now() + delay, ref, measured[0])
                 plan = goal.plan(start.state, measured[1])
-                if policy.on_time(self._clock(), start):
+                if policy.on_time(self._ros_now(), start):
                     break
                 delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
@@ -298,7 +298,7 @@ class PlannerNode(Node):
             return
         stamp_ns = int(round(stamp * 1e9))
         self.pub_traj.publish(self.codec.joint_trajectory(stamp_ns, '', names, *points))
-        policy.sent_plan(goal, plan.trajectory, start, names, stamp_key(stamp_ns), self._clock(),
+        policy.sent_plan(goal, plan.trajectory, start, names, stamp_key(stamp_ns), self._ros_now(),
                          self.get_parameter('reference_timeout').value)
         summary = plan.summary(period)
         segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)

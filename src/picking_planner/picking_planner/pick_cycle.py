@@ -210,7 +210,7 @@ class PickCycle:
         Raises Unreachable naming the knot point that cannot be reached.
         """
         pl, s, arm = self.planner, self.s, self.arm
-        start = pl._start(start)
+        start = pl.check_start(start)
         if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
                              'entered and left at speed)')
@@ -237,7 +237,7 @@ class PickCycle:
             if path is not None:
                 cart.append((len(parts) - 1, path))
 
-        stop, q_rest = pl._from_rest(start)
+        stop, q_rest = pl.come_to_rest(start)
         if stop is not None:
             add('brake', 'quintic', stop)
         if np.abs(q_rest - home).max() > 1e-4:
@@ -261,7 +261,7 @@ class PickCycle:
             q_box = q4 if into_box is None else into_box.start_state()[0]
             # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
             corner = q_lift if q_top is None else q_top
-            return pl._via(np.array([q_lift, self._clearance(corner, q['P4']), q_box]), s.transfer_method,
+            return pl.via(np.array([q_lift, self._clearance(corner, q['P4']), q_box]), s.transfer_method,
                            blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
         def home_from(rise):
@@ -304,9 +304,9 @@ class PickCycle:
             add('P4 out of the box', 'line', traj, path)
             add('P0 back home', s.transfer_method, moved)
         else:
-            add('P0 back home', s.transfer_method, pl._via(np.array([q_box, q['P4'], home]), s.transfer_method))
+            add('P0 back home', s.transfer_method, pl.via(np.array([q_box, q['P4'], home]), s.transfer_method))
 
-        plan = pl._join(parts, 'pick', cart)
+        plan = pl.join(parts, 'pick', cart)
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)

@@ -21,7 +21,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .demo_report import analyse_and_report, load_demo_settings, log
 from .stack import BIN as HERE, Stack

@@ -1,0 +1,183 @@
+"""New trajectories: validated, led into from the current reference without a jump, and scheduled
+to take over (part of :class:`~picking_controller.core.ControllerCore`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from picking_planner.trajectory import brake, held_within_limits, hold
+
+from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared
+from .sampler import from_points
+
+
+class Splicing:
+    """The active trajectory, the one waiting for its splice time, and how a new one takes over."""
+
+    def reference(self, now):
+        """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
+        if self.next is not None and now >= self.next.t_splice:
+            self._set(self.next.traj, self.next.t_splice, self.next.lead_in)
+            self.mode = Mode.MOVING
+            self.max_error[:] = 0.0
+        if self.traj is None:
+            return None
+        # A tick that read the clock just before a new trajectory was loaded gets the
+        # trajectory's start state (with its velocity), not the "before the start" hold.
+        return self.traj.state_at(max(now - self.t0, self.traj.start_time))
+
+    def _set(self, traj, t0, lead_in=0.0):
+        """Make ``traj`` (its t = 0 at clock time ``t0``, its first ``lead_in`` s a lead-in
+        from the reference) the active trajectory."""
+        self.traj, self.t0 = traj, t0
+        self.lead_in_end = t0 + lead_in
+        self.next = None
+        self.version += 1
+
+    def _hold_at(self, q, now):
+        self._set(hold(q, 1.0), now)
+
+    def _stop(self, now):
+        """Brake the reference to rest, within the acceleration limits, then hold."""
+        self._set(brake(*self.reference(now), self.max_acceleration), now)
+
+    # -- new trajectories -------------------------------------------------------------
+    def load(self, joint_names, times, positions, velocities, accelerations, start, now):
+        """Validate and start a trajectory now; returns an Event (accepted or rejected).
+
+        :meth:`prepare` then :meth:`commit` at the same time: what a node does in
+        two steps, so that its control loop never waits for the validation.
+        """
+        try:
+            prepared = self.prepare(joint_names, times, positions, velocities, accelerations, start, now)
+        except ValueError as exc:
+            return self.rejected(exc)
+        return self.commit(prepared, now)
+
+    @staticmethod
+    def rejected(exc, **values):
+        """The ERROR event for a trajectory refused with ``exc``; ``late`` says whether it only came
+        too late (a :class:`LateTrajectory`), so that its sender can tell a stale plan from a bad one."""
+        return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference',
+                     {**values, 'late': isinstance(exc, LateTrajectory)})
+
+    def commit(self, prepared, now):
+        """Schedule a prepared trajectory to take over at its splice time.
+
+        Returns its Event, or None when the active trajectory changed since it was
+        prepared (a fault braked, feedback came) or its splice time has passed:
+        prepare it again.
+        """
+        if prepared.version != self.version or now > prepared.t_splice:
+            return None
+        if now == prepared.t_splice:
+            self._set(prepared.traj, prepared.t_splice, prepared.lead_in)
+            self.mode = Mode.MOVING
+            self.max_error[:] = 0.0
+        else:
+            self.next = prepared
+            self.version += 1
+        return prepared.accepted
+
+    def prepare(self, joint_names, times, positions, velocities, accelerations, start, now, splice_delay=0.0):
+        """Validate a trajectory and splice it onto the reference at ``now + splice_delay``.
+
+        Reads the controller's state but changes nothing, so a node can run it
+        outside the lock its control loop takes; :meth:`commit` then schedules
+        the result. Raises ValueError with the reason for refusing it.
+
+        Parameters
+        ----------
+        joint_names : sequence of str
+            The message's joint order.
+        times : array_like, shape (m,)
+            ``time_from_start`` of the points, s.
+        positions, velocities, accelerations : array_like, shape (m, k)
+            Empty velocities/accelerations mean "not given".
+        start : float
+            Clock time of the trajectory's start (header.stamp; 0 means the splice time).
+        now : float
+        splice_delay : float
+            The new trajectory takes over this long after ``now``, s: time for the
+            caller to finish before the switch (the old one runs until then).
+        """
+        version = self.version
+        now = now + splice_delay                 # everything below happens at the splice time
+        if self.mode == Mode.WAITING:
+            raise ValueError('no joint_states received yet: the controller does not know where the arm is')
+        if not self.feedback_ok:
+            raise ValueError('feedback lost: no joint_states; refusing to move blind')
+        order = self._order(joint_names)
+        ref = self._commanded(*self._reference_at(now))
+        held = ref[0]
+        times = np.asarray(times, float)
+        m = times.size
+        pos = self._block(positions, m, len(joint_names), order, 'positions', held=held)
+        vel = self._block(velocities, m, len(joint_names), order, 'velocities', optional=True)
+        acc = self._block(accelerations, m, len(joint_names), order, 'accelerations', optional=True)
+        offset = (start - now) if start > 0 else 0.0
+        rel = times + offset
+        if m and rel[-1] <= MIN_LEAD:
+            raise LateTrajectory('the trajectory ends in the past (or within 20 ms)')
+        self._check_limits(pos, vel, acc, times=rel)
+        # Points due within the lead are dropped and replaced by a lead-in from the current
+        # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
+        # catches up over a longer one (as long as the plan expects the arm near its reference).
+        traj = error = None
+        for lead in LEADS:
+            if rel[-1] <= lead:
+                break
+            keep = rel > lead
+            if not keep.all():
+                # The last dropped point is where the plan expects the arm at the end of the lead.
+                due = rel[~keep][-1]
+                gap = np.abs(pos[~keep][-1] - held).max()
+                if gap > self.tol.path:
+                    error = error or LateTrajectory(
+                        f'its point due at {due:+.3f} s lies {gap:.4f} rad from the current '
+                        f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
+                        'point a later time_from_start to move there smoothly')
+                    break
+            checking = False
+            try:
+                traj = from_points(rel[keep], pos[keep], None if vel is None else vel[keep],
+                                   None if acc is None else acc[keep], start=ref)
+                checking = True
+                self._check_spline(traj)
+                break
+            except ValueError as exc:
+                traj = None
+                if keep.all():
+                    # Not late. Planned from another reference (the sender's view of a plan this
+                    # controller did not run, say), it may only be the lead-in that breaks a limit:
+                    # stale, its sender may plan it again; else the trajectory itself is at fault.
+                    error = exc
+                    if checking and self._starts_elsewhere(now + rel[0], pos[0], None if vel is None else vel[0]):
+                        error = LateTrajectory(f'{exc} (its first point is not where the current reference '
+                                               'will be: planned from another reference?)')
+                    break
+                error = LateTrajectory(str(exc))
+        if traj is None:
+            raise error
+        return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
+            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}),
+            lead_in=float(rel[keep][0]))
+
+    def _starts_elsewhere(self, t, q, qd, tol=1e-6):
+        """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""
+        ref_q, ref_qd, _ = self._commanded(*self._reference_at(t))
+        return bool(np.abs(ref_q - q).max() > tol or (qd is not None and np.abs(ref_qd - qd).max() > tol))
+
+    def _commanded(self, q, qd, qdd):
+        """A reference state held within the limits, as :meth:`command` sends it: what a new
+        trajectory is spliced onto. (A reference beyond a limit, led in too hard before, would
+        make every lead-in from it break the limit at once: the arm could take no new trajectory.)
+        A joint at a position limit stops there; one at its speed limit stops accelerating past it."""
+        return held_within_limits(q, qd, qdd, self.lower, self.upper, self.max_velocity, self.max_acceleration)
+
+    def _reference_at(self, t):
+        """The reference at clock time ``t`` as things stand (a scheduled trajectory
+        included), without switching to it."""
+        traj, t0 = (self.next.traj, self.next.t_splice) if self.next and t >= self.next.t_splice \
+            else (self.traj, self.t0)
+        return traj.state_at(max(t - t0, traj.start_time))
