@@ -18,9 +18,18 @@ def test_eq20_below_minimum_is_refused_with_the_minimum_named():
         trajectory.lspb(15.0, 75.0, 3.0, 26.0)
 
 
+def test_one_joint_given_as_plain_numbers_has_plain_float_attributes():
+    seg = trajectory.lspb(15.0, 75.0, 3.0, 42.0)
+    for name in ('blend_time', 'blend_position', 'cruise_velocity', 'accel', 'min_accel'):
+        assert type(getattr(seg, name)) is float, name
+    assert float(seg.blend_time) == seg.blend_time
+    assert seg.sample([0.0, 1.0])[0].shape == (2, 1)
+    assert trajectory.lspb([15.0], [75.0], 3.0, 42.0).blend_time.shape == (1,)
+
+
 def test_eq20_exactly_the_minimum_gives_the_triangular_profile():
     seg = trajectory.lspb(15.0, 75.0, 3.0, 4.0 * 60.0 / 9.0)
-    assert seg.blend_time[0] == pytest.approx(1.5)
+    assert seg.blend_time == pytest.approx(1.5)
     q, qd, _ = seg.sample([1.5])
     assert q[0, 0] == pytest.approx(45.0)
     assert qd[0, 0] == pytest.approx(40.0)          # peak = accel * tf / 2
@@ -28,19 +37,19 @@ def test_eq20_exactly_the_minimum_gives_the_triangular_profile():
 
 def test_eq19_eq16_blend_at_42_deg_s2():
     seg = trajectory.lspb(15.0, 75.0, 3.0, 42.0)
-    assert seg.blend_time[0] == pytest.approx(0.594, abs=5e-4)        # paper: 0.59 s
-    assert seg.blend_position[0] == pytest.approx(22.4, abs=5e-3)     # paper: 22.3 deg (rounded t_a)
-    assert seg.cruise_velocity[0] == pytest.approx(24.93, abs=5e-3)
-    q, qd, qdd = seg.sample([0.0, seg.blend_time[0], 1.5, 3.0])
+    assert seg.blend_time == pytest.approx(0.594, abs=5e-4)        # paper: 0.59 s
+    assert seg.blend_position == pytest.approx(22.4, abs=5e-3)     # paper: 22.3 deg (rounded t_a)
+    assert seg.cruise_velocity == pytest.approx(24.93, abs=5e-3)
+    q, qd, qdd = seg.sample([0.0, seg.blend_time, 1.5, 3.0])
     assert q[:, 0] == pytest.approx([15.0, 22.4014, 45.0, 75.0], abs=1e-3)
     assert qd[[0, -1], 0] == pytest.approx([0.0, 0.0], abs=1e-12)
 
 
 def test_eq19_blend_at_27_deg_s2():
     seg = trajectory.lspb(15.0, 75.0, 3.0, 27.0)
-    assert seg.blend_time[0] == pytest.approx(4.0 / 3.0)             # paper: 1.33 s
-    assert seg.blend_position[0] == pytest.approx(39.0)               # paper: 38.88 deg
-    assert seg.cruise_velocity[0] == pytest.approx(36.0)              # paper: 35.91 deg/s
+    assert seg.blend_time == pytest.approx(4.0 / 3.0)             # paper: 1.33 s
+    assert seg.blend_position == pytest.approx(39.0)               # paper: 38.88 deg
+    assert seg.cruise_velocity == pytest.approx(36.0)              # paper: 35.91 deg/s
 
 
 def test_fig9_two_joints_move_in_one_synchronised_duration():

@@ -122,8 +122,8 @@ def run_paper(out, dt):
     lines.append(f'Eq. 20  LSPB 15->75 deg in 3 s: minimum acceleration {amin:.2f} deg/s^2')
     for accel, stem in ((42.0, 'fig9-11_lspb_42'), (27.0, 'fig9-11_lspb_27')):
         seg = trajectory.lspb(**PAPER_LSPB, accel=accel)
-        lines.append(f'Eq. 19  accel {accel:g}: blend {seg.blend_time[0]:.3f} s, blend end '
-                     f'{seg.blend_position[0]:.2f} deg, cruise {seg.cruise_velocity[0]:.2f} deg/s')
+        lines.append(f'Eq. 19  accel {accel:g}: blend {seg.blend_time:.3f} s, blend end '
+                     f'{seg.blend_position:.2f} deg, cruise {seg.cruise_velocity:.2f} deg/s')
         files += save_profile(seg, out, stem, f'LSPB 15→75° in 3 s, {accel:g}°/s² (Figs. 9-11)', deg, dt)
     both = trajectory.lspb([15.0, 15.0], [75.0, 75.0], 3.0, [42.0, 27.0])
     files += save_profile(both, out, 'fig9-11_lspb_both', 'LSPB 15→75° in 3 s: 42 and 27°/s²', deg, dt)

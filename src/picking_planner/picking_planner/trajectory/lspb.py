@@ -89,6 +89,10 @@ def lspb(q0, qf, duration, accel):
     Returns
     -------
     Lspb
+        Its per-joint attributes (``blend_time``, ``blend_position``, ``cruise_velocity``,
+        ``accel``, ``min_accel``) are arrays of one value per joint, or plain floats when
+        ``q0`` and ``qf`` are given as plain numbers (one joint); ``sample`` keeps its
+        (len(t), n_joints) arrays either way.
 
     Raises
     ------
@@ -97,6 +101,7 @@ def lspb(q0, qf, duration, accel):
         message names the minimum. Exactly the minimum gives a triangular
         velocity profile (no cruise).
     """
+    one_joint = np.ndim(q0) == 0 and np.ndim(qf) == 0
     q0, qf = _end_points(q0, qf)
     duration = as_duration(duration)
     n = q0.size
@@ -123,8 +128,8 @@ def lspb(q0, qf, duration, accel):
         v=np.stack([zeros, vc, vc]),
         a=np.stack([acc, zeros, -acc]))
     out = Lspb(breaks, coeffs)
-    out.blend_time, out.blend_position, out.cruise_velocity = tb, qa, vc
-    out.accel, out.min_accel = a, amin
+    per_joint = (float(x[0]) for x in (tb, qa, vc, a, amin)) if one_joint else (tb, qa, vc, a, amin)
+    out.blend_time, out.blend_position, out.cruise_velocity, out.accel, out.min_accel = per_joint
     return out
 
 
