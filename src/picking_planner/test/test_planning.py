@@ -43,7 +43,7 @@ def test_moves_of_parabolas_are_checked_where_their_extremes_lie():
     there are those of a sampling every 10 µs (exactly where the sampling meets them), in far
     fewer points; a move with higher powers is sampled every 2.5 ms."""
     from picking_planner import trajectory
-    from picking_planner.planning import _check_times
+    from picking_planner.planning.limits import _check_times
     rng = np.random.default_rng(21)
     for _ in range(30):
         points = rng.uniform(-1.0, 1.0, (4, 3))
@@ -168,7 +168,7 @@ def test_table1_cycle_visits_every_knot_point_with_the_gripper(arm, planner):
 def test_a_line_slowed_to_the_joint_limits_uses_them_fully_with_one_ik_pass(arm, planner, monkeypatch):
     """A line too fast for the joints is stretched (its joint path scales exactly in time),
     not re-solved with a safety margin: its fastest joint reaches the plan's limit."""
-    import picking_planner.planning as planning
+    import picking_planner.planning.cartesian as planning
     passes = []
     solve = planning.cartesian_to_joint
     monkeypatch.setattr(planning, 'cartesian_to_joint', lambda *a, **k: passes.append(1) or solve(*a, **k))
@@ -217,7 +217,7 @@ def test_via_lspb_lines_run_at_the_speed_limit_where_it_binds(arm):
     limit (an end line blends from rest: T = dq / v + v / 2a), neither above it nor far below."""
     planner = Planner(arm, PlannerSettings(speed_scale=0.5))
     qs = np.array([HOME, HOME + [1.2, 0.3, -0.3, 0.5, 0.0, 0.8], HOME + [2.4, 0.0, 0.0, 0.9, 0.2, 1.6]])
-    traj = planner._via(qs, 'via_lspb')
+    traj = planner.via(qs, 'via_lspb')
     _, qd, _ = traj.sample(np.linspace(0.0, traj.duration, 4000))
     use = np.max(np.abs(qd) / planner._vmax)
     assert 0.999 <= use <= 1.0 + 1e-9
