@@ -67,8 +67,8 @@ class ControllerNode(Node):
         self._commanding = False
         self.create_timer(1.0, self._report_loop)
         # Taken as bytes and read with numpy where our reader agrees with this middleware: the
-        # message class holds the GIL for milliseconds on a few hundred points (about 4 ms for
-        # 400), which the control loop would wait for.
+        # message class holds the GIL for milliseconds on a few hundred points, which the control
+        # loop would wait for.
         self.sub_trajectory = self.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory,
                                                        RELIABLE, raw=self.codec.raw)
         # The control thread takes the newest joint_states itself at each tick: no
@@ -80,7 +80,7 @@ class ControllerNode(Node):
                                  phase=loop_phase, priority=thread_priority)
         self.loop_stats = self.loop.stats
         self.loop.start()
-        # This thread goes on to run the executor: trajectories (about 2 ms of Python each), status,
+        # This thread goes on to run the executor: trajectories (milliseconds of Python each), status,
         # parameters. It shares the GIL with the loop; at normal priority, any real-time thread on
         # the machine (another arm's loops) can preempt it while it holds the GIL, and the loop
         # waits for it (priority inversion). Just below the loop, it is not preempted that way.

@@ -1,4 +1,4 @@
-"""``picking-planner``: the planner node (ROS shell around planning.py).
+"""``picking-planner``: the planner node, a ROS shell around the planning core and the goal policy.
 
 Subscribes ``goal_pose`` (PoseStamped), ``goal_path`` (PoseArray),
 ``pick_target`` (PoseStamped), ``joint_states`` and ``joint_commands`` (the
@@ -39,15 +39,6 @@ from .goal_policy import WAIT_LIMIT, Goal, GoalPolicy
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
 
-#: s a plan must leave between the end of planning and its start: sending it, and the
-#: controller's checks (a few ms per hundred points).
-DELIVERY = 0.08
-#: s a first goal of a kind is expected to take to plan (later ones: what the last took). A plan
-#: that ends too late to start on time is planned again further ahead, so a guess too short
-#: costs a second planning: a pick cycle (about ten lines and moves) takes 0.1-0.4 s here.
-FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4}
-#: rad: the controller's reference is following our last plan when within this of it.
-FOLLOWING = 1e-3
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',

@@ -87,8 +87,8 @@ class PickSettings:
         while it descends from P4 to where the line into the box begins. Less than half
         of ``approach_distance``, ``lift_height`` and ``box_drop_height``, so that most
         of every line stays straight (the apple is pulled straight off for at least half
-        the lift). With 2 cm the tool passes within 3 mm of every corner point and the
-        jerk-limited cycle takes 4.93 s instead of 5.18 s (``make bench``, row 7).
+        the lift). How close the tool passes each corner and what the cycle gains are in
+        ``docs/benchmarks.md`` (row 7).
     """
 
     home_positions: tuple = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)

@@ -68,9 +68,8 @@ def _unit_profile(name):
     return getattr(trajectory, name)(0.0, 1.0, 1.0)
 
 
-# A scipy Rotation of proper rotation matrices that are checked already: recent scipy (1.17
-# here) checks each again unless told not to (``assume_valid``: 50 µs for two matrices on the
-# benchmark machine); older versions have neither that check nor the flag.
+# A scipy Rotation of proper rotation matrices that are checked already: recent scipy checks
+# each again unless told not to (``assume_valid``); older versions have neither that check nor the flag.
 try:
     Rotation.from_matrix(np.eye(3), assume_valid=True)
     _from_valid_matrices = functools.partial(Rotation.from_matrix, assume_valid=True)
@@ -107,7 +106,7 @@ class _Slerp:
 
     Built from matrices and evaluated to matrices (what the poses need): scipy's ``Slerp``
     builds two ``Rotation`` objects per call and composes them through its array-API
-    layers, 90 µs for a line's 50 samples on the benchmark machine; this takes 25 µs.
+    layers, which cost more than the arithmetic for a line's few dozen samples.
     """
 
     __slots__ = ('keys', 'spans', 'matrices', 'steps')

@@ -198,7 +198,7 @@ def check_joint_limits(arm, t, q, qd, qdd, slack=1e-6, names=None):
               ('acceleration', qdd, -amax, amax, 'rad/s^2'))
     kernels = compiled_kernels()
     if kernels is not None:
-        # One compiled pass per array (a planner checks every move this way: 66 -> 20 µs for 201 x 6).
+        # One compiled pass per array: a planner checks every move this way.
         scans = [kernels.scan_limits(values, lo - slack, hi + slack) for _, values, lo, hi, _ in checks]
         if not np.isfinite(t).all() or any(nonfinite for _, nonfinite in scans):
             raise ValueError('check_joint_limits needs finite times and joint values')

@@ -18,12 +18,11 @@ samples, a whole pick cycle) or of one at up to a few thousand times, each sampl
 found by bisection and its q, qd and qdd evaluated by Horner's scheme from the
 position coefficients (no derivative table to build first: most trajectories a
 planner makes are sampled once), where numpy needs a dozen calls (search, clip,
-gather, power basis, a batched product of tiny matrices) of 5-20 µs each.
+gather, power basis, a batched product of tiny matrices), each with its own overhead.
 
 :func:`quintic_spline`: the C2 spline through a line's 50-odd IK samples (a
-tridiagonal solve and a quintic per segment), 24 µs for :func:`.via.quintic_via`
-against 91 µs with numpy, whose LAPACK call and dozen array expressions cost more
-than their arithmetic.
+tridiagonal solve and a quintic per segment), where numpy's LAPACK call and dozen
+array expressions cost more than their arithmetic.
 
 :func:`scan_limits` (the joint-limit check of every planned move),
 :func:`merge_pieces` (each joint's LSPB or jerk-limited phases merged over the union
@@ -52,16 +51,13 @@ _OUT = types.Array(types.float64, 2, 'C')
 # One signature, compiled (or loaded from the cache) at import: a call with other types raises
 # TypeError instead of compiling a new version in the middle of sampling. Contiguous arrays
 # only: with unknown strides ('A') or an index computed in the inner loop, LLVM does not
-# vectorise the loops, and the kernel took 3x as long (0.65-0.77 ms against 0.21 ms for
-# 100 000 x 6 samples on an AVX-512 machine, where numpy's fill of the output takes 0.21 ms).
+# vectorise the loops.
 SIGNATURE = types.boolean(_IN, types.float64, types.float64, types.float64, _PROFILE, _IN, _IN, _OUT, types.intp)
 
 #: Samples per chunk (the chunk's profile, 3 x 131 072 doubles, 3 MiB, stays in the L2 or L3
 #: cache). Each output row is written whole for a chunk, so that a sampling of up to this many
-#: times writes its output front to back, as a fill does. In chunks of 2 048, whose 18 rows
-#: took turns in 16 KiB pieces, benchmark row 1's quintic (100 000 x 6, timed in turn with
-#: ``jtraj``, which evicts it from the caches) took 3.0-3.2 times numpy's fill of the output;
-#: in one chunk 2.6-2.8 times (four pairs of runs, side by side).
+#: times writes its output front to back, as a fill does, instead of taking turns among the
+#: rows in small pieces, which costs far more once the output has left the caches.
 CHUNK = 1 << 17
 
 
