@@ -28,6 +28,9 @@ from picking_planner.resources import default_urdf
 
 from .servo import Servo, ServoParams
 
+#: Servo steps run at each wake of the loop thread.
+STEPS_PER_WAKE = 2
+
 
 class SimNode(Node):
     """The simulated arm: servo loop thread + ROS interface."""
@@ -69,7 +72,12 @@ class SimNode(Node):
         self._commanded = False
         # The servo's time is the ROS clock: a loop deadline (monotonic) plus this offset.
         self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
-        self.loop = PeriodicLoop(self.servo.dt, self._tick, name='servo', logger=self.get_logger(),
+        # The servo integrates in fixed steps of dt; its thread wakes every STEPS_PER_WAKE steps and
+        # runs them at once, the command moved on to the first one's time: a simulated arm then
+        # costs the machine it shares with the nodes under test half the wake-ups (woken every
+        # step, the simulator took enough CPU from a planner under a flood of goals that its
+        # plans came late).
+        self.loop = PeriodicLoop(self.servo.dt * STEPS_PER_WAKE, self._tick, name='servo', logger=self.get_logger(),
                                  phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled)
         self.loop.start()
         self.get_logger().info(
@@ -108,11 +116,12 @@ class SimNode(Node):
         except (ValueError, IndexError) as exc:
             self.get_logger().warn(f'ignoring joint_commands: {exc}', throttle_duration_sec=2.0)
 
-    def _tick(self, deadline, due):
+    def _tick(self, deadline, periods):
         """The servo steps due by ``deadline``, the newest command moved on to the state's time first:
         after a stall the missed steps run at once, the reference following the command through them."""
         t_deadline = deadline + self._clock_offset
         dt = self.servo.dt
+        due = periods * STEPS_PER_WAKE
         with self.lock:
             self._apply_newest_command(t_deadline - due * dt)
             for i in range(due):
