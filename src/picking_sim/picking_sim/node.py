@@ -118,17 +118,20 @@ class SimNode(Node):
 
     def _tick(self, deadline, periods):
         """The servo steps due by ``deadline``, the newest command moved on to the state's time first:
-        after a stall the missed steps run at once, the reference following the command through them."""
+        after a stall the missed steps run at once, the reference following the command through them.
+        The servo runs one step ahead of the clock (its state at the end of the step under way), as
+        a drive reports the state it is driving to."""
         t_deadline = deadline + self._clock_offset
         dt = self.servo.dt
         due = periods * STEPS_PER_WAKE
         with self.lock:
-            self._apply_newest_command(t_deadline - due * dt)
+            t_state = t_deadline + dt - due * dt
+            self._apply_newest_command(t_state)
             for i in range(due):
                 self.servo.step()
                 self._steps += 1
                 if self._steps % self.publish_every == 0:
-                    self._publish(t_deadline - (due - 1 - i) * dt)
+                    self._publish(t_state + (i + 1) * dt)
             if self.servo.commanded != self._commanded:
                 self._commanded = self.servo.commanded
                 self._say_commanded(self._commanded)
