@@ -3,10 +3,12 @@
 One loop, one stall policy: the loop wakes at absolute deadlines (``origin + k period``, so the
 rate never drifts), optionally phase-aligned and under SCHED_FIFO, and calls its tick with the
 number of periods that passed since the last call. Woken far behind its deadline (the process
-was stopped, or the machine is saturated), it first lets the process's other threads run
-briefly, so that the middleware takes in what came meanwhile, then calls the tick once for all
-the periods missed and goes on from the next deadline after now: never a burst of ticks. The
-stalls are reported at most once a second.
+was stopped, or the machine is saturated), it calls the tick once for all the periods missed and
+goes on from the next deadline after now: never a burst of ticks. A loop that follows the newest
+message of a stream (the simulator) may first let the process's other threads run briefly
+(``catch_up_yield``), so that the middleware takes in what came meanwhile; a loop that must see
+the stall before anything else runs (the controller, which delays its trajectory by it) does not.
+The stalls are reported at most once a second.
 """
 
 from __future__ import annotations
@@ -20,8 +22,6 @@ from .loop_stats import LoopStats
 
 #: s: a loop woken this much late counts it as a stall.
 STALL = 0.02
-#: s a stalled loop yields before its tick, for the middleware's threads to take in what came.
-CATCH_UP_YIELD = 0.002
 #: s a loop sleeps at least between ticks, even when late: a real-time thread that never sleeps
 #: starves the rest of the machine.
 MIN_SLEEP = 5e-5
@@ -80,10 +80,11 @@ class PeriodicLoop:
     ``deadline`` is the monotonic time (s) of the deadline served, ``due`` how many periods
     passed since the last call (1 unless the loop stalled). ``on_stall(worst, count)`` hears of
     the stalls (the longest in s, and how many), at most once a second; by default they are
-    logged. ``stats`` (:class:`LoopStats`) records every wake.
+    logged. ``catch_up_yield``: s a stalled loop sleeps before its tick. ``stats`` (:class:`LoopStats`)
+    records every wake.
     """
 
-    def __init__(self, period, tick, *, name, logger, phase=-1.0, priority=0, on_stall=None):
+    def __init__(self, period, tick, *, name, logger, phase=-1.0, priority=0, on_stall=None, catch_up_yield=0.0):
         if not (math.isfinite(period) and period > 0):
             raise ValueError(f'the {name} loop period must be > 0 s, got {period}')
         self.period = float(period)
@@ -93,6 +94,7 @@ class PeriodicLoop:
         self.phase = check_loop_phase(phase)
         self.priority = check_priority(priority)
         self.on_stall = on_stall or self._log_stall
+        self.catch_up_yield = float(catch_up_yield)
         self.stats = LoopStats(self.period)
         self.origin = None
         self._stop = threading.Event()
@@ -122,8 +124,9 @@ class PeriodicLoop:
             now = time.monotonic()
             if now - deadline > STALL:
                 stalls, worst = stalls + 1, max(worst, now - deadline)
-                time.sleep(CATCH_UP_YIELD)
-                now = time.monotonic()
+                if self.catch_up_yield > 0.0:
+                    time.sleep(self.catch_up_yield)
+                    now = time.monotonic()
             k = max(int((now - origin) / period), served + 1)
             due, served = k - served, k
             self.stats.record(now)

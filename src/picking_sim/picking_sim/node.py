@@ -30,6 +30,9 @@ from .servo import Servo, ServoParams
 
 #: Servo steps run at each wake of the loop thread.
 STEPS_PER_WAKE = 2
+#: s a servo loop woken late lets the process's middleware threads take in the commands sent
+#: meanwhile before it catches up along the newest.
+CATCH_UP_YIELD = 0.002
 
 
 class SimNode(Node):
@@ -78,7 +81,8 @@ class SimNode(Node):
         # step, the simulator took enough CPU from a planner under a flood of goals that its
         # plans came late).
         self.loop = PeriodicLoop(self.servo.dt * STEPS_PER_WAKE, self._tick, name='servo', logger=self.get_logger(),
-                                 phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled)
+                                 phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled,
+                                 catch_up_yield=CATCH_UP_YIELD)
         self.loop.start()
         self.get_logger().info(
             f'simulating {self.arm.name} ({n} joints) at {p["servo_rate"]:g} Hz, '
