@@ -14,7 +14,7 @@ from rclpy.signals import SignalHandlerOptions
 
 #: s a thread waiting for the GIL lets the holder run before asking for it: a 1 kHz loop thread
 #: that wakes while another thread of its process runs Python code starts about that much late
-#: (Python's default, 5 ms, would cost a loop several periods).
+#: (Python's default interval is several control periods long).
 SWITCH_INTERVAL = 2e-5
 
 
@@ -31,7 +31,7 @@ def run_node(make_node, args=None):
         stop.set()
 
     # A real-time loop thread that wakes while another thread runs Python code waits
-    # for the GIL up to the switch interval (5 ms by default): keep that short.
+    # for the GIL up to the switch interval: keep that short.
     sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
