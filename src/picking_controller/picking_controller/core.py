@@ -17,6 +17,7 @@ import numpy as np
 from picking_planner.trajectory import PiecewisePolynomial
 
 from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared, Tolerances  # noqa: F401  (the API)
+from .goals import ErrorCode, JointTolerances, Outcome  # noqa: F401  (the API)
 from .limiting import CommandLimits
 from .monitoring import Monitoring
 from .splicing import Splicing
@@ -52,6 +53,11 @@ class ControllerCore(Monitoring, Splicing, CommandLimits, Validation):
         self.max_velocity = np.asarray(max_velocity, float)
         self.max_acceleration = np.asarray(max_acceleration, float)
         self.tol = tolerances
+        self.default_tolerances = JointTolerances.default(tolerances, self.n)
+        self.active_tolerances = self.default_tolerances   # the running trajectory's
+        self.goal = None                 # the action goal the running trajectory is for, if any
+        self.canceling = False           # that goal was canceled: the reference brakes to rest
+        self._pending = []               # events raised while switching trajectories, sent with the command
         self.mode = Mode.WAITING         # waiting -> holding <-> moving; fault on a violation
         self.traj: PiecewisePolynomial | None = None
         self.t0 = 0.0                    # clock time of the trajectory's t = 0

@@ -49,6 +49,8 @@ class Prepared:
     version: int
     accepted: Event
     lead_in: float = 0.0                 # s: the lead-in from the reference to the first point
+    goal: object = None                  # the action goal it runs for (None: a topic's trajectory)
+    tolerances: object = None            # its goals.JointTolerances (None: the defaults)
 
 
 @dataclass(frozen=True)
@@ -69,3 +71,5 @@ class Event:
     level: str                           # 'OK', 'WARN' or 'ERROR' (picking_common's Level names)
     message: str
     values: dict = field(default_factory=dict)
+    goal: object = None                  # the goal this event ends (with ``outcome``), if any
+    outcome: object = None               # its goals.Outcome

@@ -22,8 +22,9 @@ class CommandLimits:
         while waiting for feedback.
         """
         ref = self.reference(now)
+        events, self._pending = self._pending, []
         if ref is None:
-            return None, []
+            return None, events
         q, qd, qdd = ref
         # (The ufuncs themselves: np.clip and np.array_equal cost several times as much per call
         # on arrays this small, at every tick.)
@@ -35,7 +36,6 @@ class CommandLimits:
         out_qd = np.minimum(np.maximum(qd, -self.max_velocity), self.max_velocity)
         out_qdd = np.minimum(np.maximum(qdd, -self.max_acceleration), self.max_acceleration)
         self._last_command = (out_q, now)
-        events = []
         if not ((out_q == q).all() and (out_qd == qd).all() and (out_qdd == qdd).all()):
             self.limited += 1
             if self._limited_version != self.version:

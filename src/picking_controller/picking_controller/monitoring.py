@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from .events import Event, Mode
+from .goals import ErrorCode, Outcome
 
 
 class Monitoring:
@@ -44,35 +45,55 @@ class Monitoring:
             # stamped in the past): the reference of that time was rewritten by the stall's delay, so
             # there is nothing to compare with. The next measurement is checked.
             return []
-        ref_q = self.traj.sample(t_meas - self.t0)[0][0]
+        tol = self.active_tolerances
+        ref_q, ref_qd, _ = (a[0] for a in self.traj.sample(t_meas - self.t0))
         err = self.measured_q - ref_q
         np.maximum(self.max_error, np.abs(err), out=self.max_error)
-        bad = np.abs(err) > self.tol.path
-        if bad.any():
-            j = int(np.argmax(np.abs(err)))
-            self._stop(now)
-            self.mode = Mode.FAULT
-            return [Event('ERROR', f'path tolerance violated: {self.names[j]} is {err[j]:+.4f} rad from the '
-                                   f'reference (tolerance {self.tol.path}); holding',
-                          {'joint': self.names[j], 'error': float(err[j])})]
+        if (np.abs(err) > tol.path).any():
+            return [self._fault('path', err, tol.path, 'from the reference', ErrorCode.PATH_TOLERANCE_VIOLATED, now)]
+        if tol.checks_path_velocity and self.measured_qd is not None:
+            verr = self.measured_qd - ref_qd
+            if (np.abs(verr) > tol.path_velocity).any():
+                return [self._fault('path velocity', verr, tol.path_velocity, 'from the reference',
+                                    ErrorCode.PATH_TOLERANCE_VIOLATED, now)]
         end = self.t0 + self.traj.duration
         if now >= end:
             goal_q = self.traj.end_state()[0]
-            off = np.abs(self.measured_q - goal_q)
-            still = self.measured_qd is None or np.all(np.abs(self.measured_qd) <= self.tol.stopped_velocity)
-            if np.all(off <= self.tol.goal) and still:
+            off = self.measured_q - goal_q
+            moving = None if self.measured_qd is None else self.measured_qd
+            if (np.abs(off) <= tol.goal).all() and (moving is None or (np.abs(moving) <= tol.goal_velocity).all()):
                 self.mode = Mode.HOLDING
-                return [Event('OK', 'goal reached', {
-                    'final_error': float(off.max()), 'max_tracking_error': float(self.max_error.max()),
-                    'duration': self.traj.duration})]
-            if now > end + self.tol.goal_time:
-                j = int(np.argmax(off))
-                self._stop(now)
-                self.mode = Mode.FAULT
-                return [Event('ERROR', f'goal tolerance violated: {self.names[j]} is {off[j]:.4f} rad from the '
-                                       f'goal {self.tol.goal_time} s after the end (tolerance {self.tol.goal}); '
-                                       'holding', {'joint': self.names[j], 'error': float(off[j])})]
+                values = {'final_error': float(np.abs(off).max()),
+                          'max_tracking_error': float(self.max_error.max()), 'duration': self.traj.duration}
+                if self.canceling:
+                    return [self.end_goal('OK', 'goal canceled: the arm is at rest', Outcome(
+                        'canceled', ErrorCode.SUCCESSFUL, 'canceled: braked to rest within the limits'), values)]
+                return [self.end_goal('OK', 'goal reached', Outcome('succeeded', ErrorCode.SUCCESSFUL, ''), values)]
+            if now > end + tol.goal_time:
+                unsettled = moving is not None and (np.abs(moving) > tol.goal_velocity).any() \
+                    and (np.abs(off) <= tol.goal).all()
+                what, off, limit = ('goal velocity', moving, tol.goal_velocity) if unsettled else ('goal', off, tol.goal)
+                return [self._fault(what, off, limit, f'from the goal {tol.goal_time} s after the end',
+                                    ErrorCode.GOAL_TOLERANCE_VIOLATED, now)]
         return []
+
+    def _fault(self, what, off, limit, where, code, now):
+        """Brake, hold, and end the running goal with ``code``: the joint farthest beyond its tolerance."""
+        j = int(np.argmax(np.abs(off) - limit))
+        self._stop(now)
+        self.mode = Mode.FAULT
+        unit = 'rad/s' if 'velocity' in what else 'rad'
+        text = (f'{what} tolerance violated: {self.names[j]} is {off[j]:+.4f} {unit} {where} '
+                f'(tolerance {limit[j]:g} {unit})')
+        return self.end_goal('ERROR', text + '; holding', Outcome('aborted', code, text),
+                             {'joint': self.names[j], 'error': float(off[j])})
+
+    def feedback(self, now):
+        """``(reference (q, qd, qdd), measured q, measured qd or None)`` at ``now``, or None while
+        waiting for feedback: what an action goal's feedback reports."""
+        if self.traj is None or self.measured_q is None:
+            return None
+        return self._reference_at(now), self.measured_q, self.measured_qd
 
     def advance(self, now):
         """Start a tick at ``now``, before its feedback and command; returns events.
@@ -114,7 +135,9 @@ class Monitoring:
             was_moving = self.mode == Mode.MOVING
             self._stop(now)
             self.mode = Mode.HOLDING
-            return [Event('ERROR', f'feedback lost: no joint_states for {now - self.measured_time:.2f} s '
-                                   f'(state_timeout {self.tol.state_timeout} s); '
-                                   + ('trajectory aborted, ' if was_moving else '') + 'holding')]
+            text = (f'feedback lost: no joint_states for {now - self.measured_time:.2f} s '
+                    f'(state_timeout {self.tol.state_timeout} s)')
+            # No code names this: the path can no longer be checked.
+            return [self.end_goal('ERROR', text + '; ' + ('trajectory aborted, ' if was_moving else '') + 'holding',
+                                  Outcome('aborted', ErrorCode.PATH_TOLERANCE_VIOLATED, text))]
         return []

@@ -1,6 +1,8 @@
 """``picking-controller``: the joint trajectory controller node (ROS shell around core.py).
 
-Subscribes ``joint_trajectory`` and ``joint_states``; publishes ``joint_commands``
+Serves the ``follow_joint_trajectory`` action (``control_msgs/action/FollowJointTrajectory``, as
+ros2_controllers' joint trajectory controller) and subscribes ``joint_trajectory`` (the same
+trajectories without a result) and ``joint_states``; publishes ``joint_commands``
 at ``update_rate`` from a timing thread with absolute deadlines,
 ``controller_status`` for every accepted or rejected trajectory, goal reached,
 tolerance violation, and feedback lost or restored, and ``controller_loop``
@@ -13,12 +15,17 @@ the reference acceleration (rad/s^2) as feedforward for the servo.
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
 
 import numpy as np
+from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
+from rclpy.task import Future
+from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
@@ -32,7 +39,7 @@ from picking_common.topics import RELIABLE, LatestMessage, newest_waiting
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 
-from .core import ControllerCore, Event, Tolerances
+from .core import ControllerCore, ErrorCode, Event, Outcome, Tolerances
 
 
 class ControllerNode(Node):
@@ -76,6 +83,18 @@ class ControllerNode(Node):
         self.states = LatestMessage(self, JointState, 'joint_states', reader=self.codec.state_reader())
         self._last_state = None
         self._writer = self.codec.joint_state_writer(self.core.names)
+        # Action goals still running: their key -> (handle, the future their result arrives on). Events that
+        # end goals come from the control thread; the executor thread settles them.
+        self._goals = {}
+        self._ended = collections.deque()
+        self._settle = self.create_guard_condition(self._settle_goals)
+        self.action = ActionServer(self, FollowJointTrajectory, 'follow_joint_trajectory',
+                                   execute_callback=self._execute, goal_callback=lambda _: GoalResponse.ACCEPT,
+                                   cancel_callback=self._cancel)
+        monitor_rate = get('action_monitor_rate', 20.0)
+        if not monitor_rate > 0:
+            raise ValueError(f'action_monitor_rate must be > 0 Hz, got {monitor_rate}')
+        self.create_timer(1.0 / monitor_rate, self._publish_feedback)
         self.loop = PeriodicLoop(1.0 / self.rate, self._tick, name='control', logger=self.get_logger(),
                                  phase=loop_phase, priority=thread_priority)
         self.loop_stats = self.loop.stats
@@ -95,7 +114,11 @@ class ControllerNode(Node):
 
     def _report(self, events):
         for e in events:
-            self.pub_status.publish(status('picking_controller', e.level, e.message, **e.values))
+            if e.goal is not None and e.outcome is not None:
+                self._ended.append(e)
+                self._settle.trigger()
+            values = e.values if e.goal is None else {**e.values, 'goal': e.goal}
+            self.pub_status.publish(status('picking_controller', e.level, e.message, **values))
             # One logging call per severity: rclpy ties a call site to one severity.
             if e.level == 'ERROR':
                 self.get_logger().error(e.message)
@@ -120,6 +143,13 @@ class ControllerNode(Node):
         self._report(events)
 
     def _on_trajectory(self, msg):
+        """A trajectory from the topic: run like an action goal's, without a result."""
+        # Only the newest waiting trajectory counts: a burst never queues up.
+        msg = newest_waiting(self.sub_trajectory, msg, lambda old: self._report(
+            [Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')]))
+        self._run(self.codec.read_trajectory(msg))
+
+    def _run(self, read, goal=None, tolerances=None):
         """Validate and splice a new trajectory without stalling the control loop.
 
         The checks and the spline run outside the loop's lock, for a splice a
@@ -127,21 +157,17 @@ class ControllerNode(Node):
         the old trajectory until then. Only if the state changed meanwhile (or
         preparing took too long) twice in a row is the work done under the lock.
         """
-        # Only the newest waiting trajectory counts: a burst never queues up.
-        msg = newest_waiting(self.sub_trajectory, msg, lambda old: self._report(
-            [Event('WARN', 'trajectory superseded by a newer one before it was checked; not run')]))
-        read = self.codec.read_trajectory(msg)
         args = read.args()
-        header = read.header
         # Every answer names the trajectory by its stamp (its sender may plan again one that came too late).
-        trajectory = stamp_key(header.stamp)
+        trajectory = stamp_key(read.header.stamp)
         event = None
         for _ in range(2):
             started = time.perf_counter()
             try:
-                prepared = self.core.prepare(*args, self.now(), splice_delay=self._splice_delay)
+                prepared = self.core.prepare(*args, self.now(), splice_delay=self._splice_delay,
+                                             goal=goal, tolerances=tolerances)
             except ValueError as exc:
-                event = self.core.rejected(exc, trajectory=trajectory)
+                event = self.core.rejected(exc, goal=goal, trajectory=trajectory)
                 break
             self._splice_delay = min(max(0.005, 2.0 * (time.perf_counter() - started)), 0.05)
             with self.lock:
@@ -150,9 +176,75 @@ class ControllerNode(Node):
                 break
         if event is None:
             with self.lock:
-                event = self.core.load(*args, self.now())
+                event = self.core.load(*args, self.now(), goal=goal, tolerances=tolerances)
         event.values.setdefault('trajectory', trajectory)
         self._report([event])
+
+    # -- the follow_joint_trajectory action ---------------------------------------------
+    async def _execute(self, handle):
+        """Run one goal; its result comes from the event that ends it (reached, a tolerance
+        violated, preempted, canceled, feedback lost), or from the reason it was refused."""
+        key = bytes(handle.goal_id.uuid).hex()
+        done = Future()
+        self._goals[key] = handle, done
+        request = handle.request
+        try:
+            if request.multi_dof_trajectory.joint_names or request.multi_dof_trajectory.points:
+                raise ValueError('multi_dof_trajectory is not supported: this arm has single-DOF joints only')
+            if request.component_path_tolerance or request.component_goal_tolerance:
+                raise ValueError('component tolerances are for multi-DOF joints, which this arm does not have')
+            tolerances = self.core.default_tolerances.overridden(
+                self.core.names, [(t.name, t.position, t.velocity, t.acceleration) for t in request.path_tolerance],
+                [(t.name, t.position, t.velocity, t.acceleration) for t in request.goal_tolerance],
+                seconds(request.goal_time_tolerance))
+        except ValueError as exc:
+            self._report([Event('ERROR', f'goal refused: {exc}', goal=key,
+                                outcome=Outcome('aborted', ErrorCode.INVALID_GOAL, str(exc)))])
+        else:
+            self._run(self.codec.read_trajectory(request.trajectory), goal=key, tolerances=tolerances)
+        outcome = await done
+        if outcome.status == 'succeeded':
+            handle.succeed()
+        elif outcome.status == 'canceled' and handle.is_cancel_requested:
+            handle.canceled()
+        else:
+            handle.abort()
+        return FollowJointTrajectory.Result(error_code=int(outcome.code), error_string=outcome.text)
+
+    def _settle_goals(self):
+        while self._ended:
+            event = self._ended.popleft()
+            _, done = self._goals.pop(event.goal, (None, None))
+            if done is not None and not done.done():
+                done.set_result(event.outcome)
+
+    def _cancel(self, handle):
+        """A running goal brakes to rest within the limits, then ends as canceled."""
+        with self.lock:
+            accepted, events = self.core.cancel(bytes(handle.goal_id.uuid).hex(), self.now())
+        self._report(events)
+        return CancelResponse.ACCEPT if accepted else CancelResponse.REJECT
+
+    def _publish_feedback(self):
+        """The running goal's reference, measured state and their difference."""
+        with self.lock:
+            key = self.core.goal
+            now = self.now()
+            state = self.core.feedback(now) if key is not None else None
+        handle, _ = self._goals.get(key, (None, None))
+        if state is None or handle is None:
+            return
+        (q, qd, qdd), q_meas, qd_meas = state
+        fb = FollowJointTrajectory.Feedback()
+        fb.header.stamp = Time(nanoseconds=int(now * 1e9)).to_msg()
+        fb.joint_names = self.core.names
+        fb.desired.positions, fb.desired.velocities, fb.desired.accelerations = q.tolist(), qd.tolist(), qdd.tolist()
+        fb.actual.positions = q_meas.tolist()
+        fb.error.positions = (q - q_meas).tolist()
+        if qd_meas is not None:
+            fb.actual.velocities = qd_meas.tolist()
+            fb.error.velocities = (qd - qd_meas).tolist()
+        handle.publish_feedback(fb)
 
     def _tick(self, deadline, due):
         """One control period: the reference sampled at the tick's time, stamped with it."""

@@ -8,6 +8,7 @@ import numpy as np
 from picking_planner.trajectory import brake, held_within_limits, hold
 
 from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared
+from .goals import ErrorCode, Outcome
 from .sampler import from_points
 
 
@@ -17,9 +18,7 @@ class Splicing:
     def reference(self, now):
         """``(q, qd, qdd)`` to command at ``now``, or None while waiting for feedback."""
         if self.next is not None and now >= self.next.t_splice:
-            self._set(self.next.traj, self.next.t_splice, self.next.lead_in)
-            self.mode = Mode.MOVING
-            self.max_error[:] = 0.0
+            self._take_over(self.next)
         if self.traj is None:
             return None
         # A tick that read the clock just before a new trajectory was loaded gets the
@@ -34,6 +33,46 @@ class Splicing:
         self.next = None
         self.version += 1
 
+    def _take_over(self, prepared):
+        """Run a prepared trajectory from its splice time; the goal it replaces ends as preempted."""
+        self._preempt(self.goal, prepared.goal)
+        self._set(prepared.traj, prepared.t_splice, prepared.lead_in)
+        self.goal, self.canceling = prepared.goal, False
+        self.active_tolerances = prepared.tolerances or self.default_tolerances
+        self.mode = Mode.MOVING
+        self.max_error[:] = 0.0
+
+    def _preempt(self, goal, by):
+        if goal is not None and goal != by:
+            self._pending.append(Event('WARN', 'goal preempted by a newer trajectory', goal=goal, outcome=Outcome(
+                'aborted', ErrorCode.INVALID_GOAL, 'preempted: a newer trajectory took over from this one'
+                + (f' (goal {by})' if by is not None else ' (from the joint_trajectory topic)'))))
+
+    def end_goal(self, level, message, outcome, values=None):
+        """The event that ends the running goal (if any) with ``outcome``."""
+        event = Event(level, message, values or {}, goal=self.goal, outcome=outcome)
+        self.goal, self.canceling = None, False
+        return event
+
+    def cancel(self, goal, now):
+        """Cancel action goal ``goal``: ``(accepted, events)``.
+
+        A goal whose trajectory is still waiting for its splice time ends at once; a running one
+        brakes to rest within the acceleration limits and ends as canceled when the arm is
+        still (see the monitoring part). A goal that already ended cannot be canceled.
+        """
+        if self.next is not None and self.next.goal == goal:
+            self.next = None
+            self.version += 1
+            return True, [Event('OK', 'goal canceled before its trajectory started', goal=goal,
+                                outcome=Outcome('canceled', ErrorCode.SUCCESSFUL, 'canceled before it started'))]
+        if goal is None or self.goal != goal or self.mode != Mode.MOVING:
+            return False, []
+        if not self.canceling:
+            self._stop(now)
+            self.canceling = True
+        return True, [Event('OK', 'goal canceled: braking to rest within the limits', {'stops_in': self.traj.duration})]
+
     def _hold_at(self, q, now):
         self._set(hold(q, 1.0), now)
 
@@ -42,24 +81,27 @@ class Splicing:
         self._set(brake(*self.reference(now), self.max_acceleration), now)
 
     # -- new trajectories -------------------------------------------------------------
-    def load(self, joint_names, times, positions, velocities, accelerations, start, now):
+    def load(self, joint_names, times, positions, velocities, accelerations, start, now, goal=None,
+             tolerances=None):
         """Validate and start a trajectory now; returns an Event (accepted or rejected).
 
         :meth:`prepare` then :meth:`commit` at the same time: what a node does in
         two steps, so that its control loop never waits for the validation.
         """
         try:
-            prepared = self.prepare(joint_names, times, positions, velocities, accelerations, start, now)
+            prepared = self.prepare(joint_names, times, positions, velocities, accelerations, start, now,
+                                    goal=goal, tolerances=tolerances)
         except ValueError as exc:
-            return self.rejected(exc)
+            return self.rejected(exc, goal=goal)
         return self.commit(prepared, now)
 
     @staticmethod
-    def rejected(exc, **values):
+    def rejected(exc, goal=None, **values):
         """The ERROR event for a trajectory refused with ``exc``; ``late`` says whether it only came
-        too late (a :class:`LateTrajectory`), so that its sender can tell a stale plan from a bad one."""
+        too late (a :class:`LateTrajectory`, code OLD_HEADER_TIMESTAMP), so that its sender can tell
+        a stale plan from a bad one."""
         return Event('ERROR', f'trajectory rejected: {exc}; the arm keeps its current reference',
-                     {**values, 'late': isinstance(exc, LateTrajectory)})
+                     {**values, 'late': isinstance(exc, LateTrajectory)}, goal=goal, outcome=Outcome.refused(exc))
 
     def commit(self, prepared, now):
         """Schedule a prepared trajectory to take over at its splice time.
@@ -71,15 +113,16 @@ class Splicing:
         if prepared.version != self.version or now > prepared.t_splice:
             return None
         if now == prepared.t_splice:
-            self._set(prepared.traj, prepared.t_splice, prepared.lead_in)
-            self.mode = Mode.MOVING
-            self.max_error[:] = 0.0
+            self._take_over(prepared)
         else:
+            if self.next is not None:
+                self._preempt(self.next.goal, prepared.goal)
             self.next = prepared
             self.version += 1
         return prepared.accepted
 
-    def prepare(self, joint_names, times, positions, velocities, accelerations, start, now, splice_delay=0.0):
+    def prepare(self, joint_names, times, positions, velocities, accelerations, start, now, splice_delay=0.0,
+                goal=None, tolerances=None):
         """Validate a trajectory and splice it onto the reference at ``now + splice_delay``.
 
         Reads the controller's state but changes nothing, so a node can run it
@@ -100,6 +143,10 @@ class Splicing:
         splice_delay : float
             The new trajectory takes over this long after ``now``, s: time for the
             caller to finish before the switch (the old one runs until then).
+        goal : hashable, optional
+            The action goal it runs for: the events that end it carry it.
+        tolerances : goals.JointTolerances, optional
+            The goal's tolerances (default: the controller's).
         """
         version = self.version
         now = now + splice_delay                 # everything below happens at the splice time
@@ -131,8 +178,9 @@ class Splicing:
             if not keep.all():
                 # The last dropped point is where the plan expects the arm at the end of the lead.
                 due = rel[~keep][-1]
-                gap = np.abs(pos[~keep][-1] - held).max()
-                if gap > self.tol.path:
+                gaps = np.abs(pos[~keep][-1] - held)
+                gap = gaps.max()
+                if (gaps > (tolerances or self.default_tolerances).path).any():
                     error = error or LateTrajectory(
                         f'its point due at {due:+.3f} s lies {gap:.4f} rad from the current '
                         f'reference (it runs from {rel[0]:+.3f} s to {rel[-1]:+.3f} s from now); give the first '
@@ -144,6 +192,7 @@ class Splicing:
                                    None if acc is None else acc[keep], start=ref)
                 checking = True
                 self._check_spline(traj)
+                self._check_lead_in(traj, float(rel[keep][0]))
                 break
             except ValueError as exc:
                 traj = None
@@ -161,7 +210,20 @@ class Splicing:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}),
-            lead_in=float(rel[keep][0]))
+            lead_in=float(rel[keep][0]), goal=goal, tolerances=tolerances)
+
+    def _check_lead_in(self, traj, lead):
+        """The lead-in from the reference to the first point must keep the acceleration limits too:
+        a lead-in that cannot is refused (a late one is tried longer, then refused as late), never
+        limited after the fact."""
+        t = np.linspace(traj.start_time, traj.start_time + lead, 17)
+        qdd = traj.sample(t)[2]
+        over = np.abs(qdd) > self.max_acceleration * (1 + 1e-3) + 1e-6
+        if over.any():
+            i, j = np.argwhere(over)[0]
+            raise ValueError(f'the {lead:.3f} s lead-in from the current reference to the first point needs '
+                             f'{self.names[j]} acceleration {qdd[i, j]:.4g}, beyond its limit '
+                             f'{self.max_acceleration[j]:.4g}: give the first point a later time_from_start')
 
     def _starts_elsewhere(self, t, q, qd, tol=1e-6):
         """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .goals import InvalidJoints
+
 
 class Validation:
     """Checks of a trajectory's message content against the arm."""
@@ -12,13 +14,13 @@ class Validation:
     def _order(self, joint_names):
         names = list(joint_names)
         if len(set(names)) != len(names):
-            raise ValueError(f'joint names repeat: {names}')
+            raise InvalidJoints(f'joint names repeat: {names}')
         unknown = [n for n in names if n not in self.names]
         missing = [n for n in self.names if n not in names and n not in self.optional]
         if unknown:
-            raise ValueError(f'unknown joints {unknown} (this arm has {self.names})')
+            raise InvalidJoints(f'unknown joints {unknown} (this arm has {self.names})')
         if missing:
-            raise ValueError(f'missing joints {missing}')
+            raise InvalidJoints(f'missing joints {missing}')
         return [names.index(n) if n in names else -1 for n in self.names]
 
     def _block(self, values, m, k, order, what, optional=False, held=None):

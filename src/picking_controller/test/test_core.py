@@ -91,7 +91,7 @@ def test_a_trajectory_that_ends_before_it_could_start_is_rejected_as_late_and_on
     behind = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.6)
     assert behind.level == 'ERROR' and 'due at' in behind.message and behind.values['late'] is True
     # Due points near the reference: the part still ahead runs.
-    caught_up = c.load(['a', 'b'], [0.5, 1.0], [[0.001, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.6)
+    caught_up = c.load(['a', 'b'], [0.5, 1.0], [[0.001, 0.0], [0.1, 0.0]], [], [], start=10.0, now=10.6)
     assert caught_up.level == 'OK', caught_up.message
 
 
@@ -237,16 +237,19 @@ def test_a_trajectory_planned_from_another_reference_is_refused_as_stale_and_a_b
 
 def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
     c = core(path=0.3)
-    # Planned to start 40 ms ago from where the arm holds, at 1 rad/s: a 20 ms lead-in would need
-    # more than the 2 rad/s limit to catch up; a longer one does not.
+    # Planned to start 40 ms ago from where the arm holds, at 0.3 rad/s: a 20 ms lead-in would need
+    # more than the 10 rad/s^2 limit to catch up; a longer one does not.
     t = np.arange(0.0, 1.01, 0.01)
-    q = np.column_stack([np.minimum(t, 1.0), np.zeros_like(t)])
-    v = np.column_stack([np.ones_like(t), np.zeros_like(t)])
+    q = np.column_stack([0.3 * t, np.zeros_like(t)])
+    v = np.column_stack([np.full_like(t, 0.3), np.zeros_like(t)])
     v[-1] = 0.0
     event = c.load(['a', 'b'], t, q, v, [], start=9.96, now=10.0)
     assert event.level == 'OK', event.message
-    speeds = [abs(c.command(10.0 + k * 1e-3)[0][1][0]) for k in range(300)]
-    assert max(speeds) <= 2.0 + 1e-9
+    assert c.next is None and c.lead_in_end - 10.0 > 0.02          # over a longer lead-in
+    sent = [c.command(10.0 + k * 1e-3) for k in range(300)]
+    assert max(abs(ref[1][0]) for ref, _ in sent) <= 2.0 + 1e-9
+    assert max(abs(ref[2][0]) for ref, _ in sent) <= 10.0 + 1e-9
+    assert not any(events for _, events in sent)                   # nothing limited
 
 
 def test_a_stalled_tick_delays_the_trajectory_instead_of_jumping_ahead():
@@ -326,13 +329,18 @@ def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
     assert v.max() <= 2.0 + 1e-3
 
 
-def test_a_lead_in_too_short_for_the_acceleration_limit_is_limited_and_named_as_such():
+def test_a_lead_in_too_short_for_the_acceleration_limit_is_refused_not_limited():
     """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest needs more than the
-    10 rad/s^2 limit. The commands keep the limit; the report says it is the lead-in."""
+    10 rad/s^2 limit. Refused with the reason (the trajectory itself is at fault: it starts where
+    the reference is not, but on time), never run with its commands limited."""
     c = core()
-    assert c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0).level == 'OK'
-    report = _the_one_limited_acceleration_report(c, until=1.1)
-    assert "lead-in from the reference to the trajectory's first point" in report.message
+    event = c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0)
+    assert event.level == 'ERROR' and 'lead-in from the current reference' in event.message
+    assert 'beyond its limit 10' in event.message
+    assert c.mode == 'holding' and c.command(0.01)[1] == []
+    # The same trajectory late, from a reference it was not planned from: late, to be planned again.
+    late = c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], start=-0.02, now=0.0)
+    assert late.values['late'] is True and late.outcome.code == -3
 
 
 def test_running_a_trajectory_of_many_points_never_imports_numba():
@@ -347,7 +355,7 @@ import numpy as np
 from picking_controller.core import ControllerCore, Tolerances
 c = ControllerCore(['a', 'b'], [-3, -3], [3, 3], [2, 2], [10, 10], Tolerances())
 c.on_state([0.0, 0.0], [0.0, 0.0], 0.0, now=0.0)
-times = np.linspace(0.1, 4.0, 40)
+times = np.linspace(0.5, 4.0, 40)
 pos = np.stack([0.5 * np.sin(times), 0.3 * (1.0 - np.cos(times))], axis=1)
 event = c.load(['a', 'b'], times, pos, [], [], 0.0, now=0.0)
 assert event.level == 'OK', event.message
