@@ -54,7 +54,7 @@ class Watcher:
         self.node = rclpy.create_node(f'bench_watcher_{os.getpid()}_{ns.strip("/")}', namespace=ns)
         self.arrivals = []
         # Raw: the arrival time, without this client's own (slow, Python) deserialisation in it.
-        self.node.create_subscription(JointTrajectory, 'joint_trajectory', self._on_trajectory, RELIABLE, raw=True)
+        self.node.create_subscription(JointTrajectory, 'planned_trajectory', self._on_trajectory, RELIABLE, raw=True)
         self.answers = []
         self.node.create_subscription(DiagnosticStatus, 'planner_status', self.answers.append, BURST)
         self.pub_pose = self.node.create_publisher(PoseStamped, 'goal_pose', BURST)

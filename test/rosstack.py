@@ -28,6 +28,7 @@ from picking_planner.cli import stack as launcher
 from picking_planner.cli.stack import NodeProcess, stop_all  # noqa: F401  (the tests stop processes with it)
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
+from picking_common.status import stamp_key, status_values
 from picking_common.topics import LatestMessage
 
 BIN = launcher.BIN
@@ -153,15 +154,19 @@ class Client(Node):
         """The last goal message sent with :meth:`send`."""
         return self._goal[1]
 
+    def answers(self, since, key=None):
+        """The planner's statuses since ``since`` about goal ``key`` (default: the last goal sent)."""
+        key = key or stamp_key(self._goal[1].header.stamp)
+        return [m for _, m in self.planner_status[since['planner']:] if status_values(m).get('goal') == key]
+
     def planner_answer(self, since, timeout=20.0, resend_every=2.0):
-        """The planner's first answer since ``since``. Like picking-goal, the last goal is sent
-        again (the planner answers a repeat without planning it twice) every ``resend_every`` s
-        without an answer: a goal sent as discovery completes can be lost."""
+        """The planner's first answer about the last goal sent, since ``since``. The last goal is
+        sent again (the planner answers a repeat without planning it twice) every ``resend_every``
+        s without an answer: a goal sent as discovery completes can be lost."""
         end = time.monotonic() + timeout
         while True:
             try:
-                return self.wait_for(lambda: self.planner_status[since['planner']:] and
-                                     self.planner_status[since['planner']][1],
+                return self.wait_for(lambda: self.answers(since)[:1] and self.answers(since)[0],
                                      min(resend_every, max(end - time.monotonic(), 0.0)), 'planner_status')
             except AssertionError:
                 if time.monotonic() >= end or self._goal is None:
@@ -233,13 +238,24 @@ def running_stack(ns, log_dir, **args):
     assert set(codes.values()) == {0}, codes
 
 
+FINAL = ('succeeded', 'aborted', 'superseded', 'canceled', 'refused')
+
+
+def final_answer(client, since, timeout=40.0):
+    """The planner's final status for the last goal sent (its result, as an action client gets it)."""
+    return client.wait_for(lambda: [m for m in client.answers(since) if status_values(m).get('state') in FINAL],
+                           timeout, 'the goal to end')[0]
+
+
 def reach(client, send, timeout=40.0):
-    """Send a goal; wait for the planner's OK and the controller's 'goal reached'."""
+    """Send a goal; wait until the planner accepted it (the controller took its plan) and it succeeded.
+    Returns the 'accepted' answer (the plan's summary)."""
     mark = client.mark()
     send()
     answer = client.planner_answer(mark)
     assert answer.level == DiagnosticStatus.OK, answer.message
-    client.controller_event(mark, 'goal reached', timeout)
+    done = final_answer(client, mark, timeout)
+    assert status_values(done)['state'] == 'succeeded', done.message
     return answer
 
 

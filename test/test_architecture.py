@@ -16,7 +16,8 @@ PURE_CORE = ('picking_planner.trajectory', 'picking_planner.geometry', 'picking_
              'picking_planner.sent_plans', 'picking_planner.analysis', 'picking_planner.resources',
              'picking_planner.compiled', 'picking_controller.core', 'picking_controller.events',
              'picking_controller.validation', 'picking_controller.splicing', 'picking_controller.monitoring',
-             'picking_controller.limiting', 'picking_controller.sampler', 'picking_sim.servo')
+             'picking_controller.limiting', 'picking_controller.sampler', 'picking_controller.goals',
+             'picking_planner.lifecycle', 'picking_sim.servo')
 #: Modules that speak ROS: the middleware and message packages.
 ROS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs',
        'trajectory_msgs', 'diagnostic_msgs', 'visualization_msgs', 'control_msgs', 'action_msgs',

@@ -8,10 +8,14 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from picking_common.status import stamp_key, status, status_values
-from trajectory_msgs.msg import JointTrajectory
+from control_msgs.action import FollowJointTrajectory
+from rclpy.action import ActionServer
+from rclpy.task import Future
 
-from rosstack import RELIABLE, Client, Stack, ensure_rclpy, largest_step, reach, running_stack
+from picking_common.status import stamp_key, status_values
+from picking_planner.lifecycle import RESULT_MARGIN
+
+from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
 
 
 def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
@@ -96,50 +100,77 @@ def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_
         assert float({kv.key: kv.value for kv in done.values}['max_tracking_error']) < 0.05
 
 
+class StandInController:
+    """The test plays the controller's follow_joint_trajectory server (the real one stopped):
+    ``verdicts`` says how each goal ends, in turn: an error code (aborted, with a reason), or
+    'silent' (accepted, then never answered)."""
+
+    def __init__(self, client, verdicts):
+        self.client, self.verdicts, self.plans = client, list(verdicts), []
+        self.server = ActionServer(client, FollowJointTrajectory, 'follow_joint_trajectory',
+                                   execute_callback=self._execute)
+
+    async def _execute(self, handle):
+        self.plans.append(handle.request.trajectory)
+        verdict = self.verdicts.pop(0) if self.verdicts else FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP
+        if verdict == 'silent':
+            await Future()                                   # never done
+        handle.abort()
+        words = {FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP: 'the trajectory ends in the past'}
+        return FollowJointTrajectory.Result(error_code=verdict, error_string=words.get(verdict, 'unknown joints'))
+
+
+def _answers(client, mark, goal):
+    return [m for _, m in client.planner_status[mark['planner']:] if status_values(m).get('goal') == goal]
+
+
 def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ahead(tmp_path):
-    """The controller refuses a plan that came too late to run (a process or the transport stalled on
-    a loaded machine) and says so (``late``, with the trajectory's stamp). The planner then plans that
-    goal again from where the arm is, starting further ahead, twice at most; then it answers the goal
-    as not run. Other refusals, and late ones of other trajectories, change nothing. The test plays
-    the controller here (the real one stopped), refusing every plan as late."""
+    """The controller ends a plan that came too late to run (a process or the transport stalled on
+    a loaded machine) with OLD_HEADER_TIMESTAMP. The planner then plans that goal again from where
+    the arm is, starting further ahead, twice at most; then it ends the goal as refused. A plan
+    refused for another reason is not planned again."""
     with running_stack('/sys7', tmp_path) as (stack, client):
         assert stack.controller.stop() == 0
-        plans = []
-        sub = client.create_subscription(JointTrajectory, 'joint_trajectory', client._rec(plans), RELIABLE)
-        pub = client.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
-        client.wait_for(lambda: sub.get_publisher_count() > 0 and pub.get_subscription_count() > 0, 10.0,
-                        'the planner to see the test as its controller')
-
-        def refuse(plan, late, message='the trajectory ends in the past (or within 20 ms)', key=None):
-            pub.publish(status('picking_controller', DiagnosticStatus.ERROR, f'trajectory rejected: {message}',
-                               late=late, trajectory=key or stamp_key(plan.header.stamp)))
-
+        bad = FollowJointTrajectory.Result.INVALID_JOINTS
+        controller = StandInController(client, [bad])
         mark = client.mark()
         goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
-        first = client.planner_answer(mark)
-        assert first.level == DiagnosticStatus.OK and status_values(first)['attempt'] == '1', first.message
-        client.wait_for(lambda: plans, 10.0, 'the first plan')
-        refuse(plans[0][1], True, key='1.000000000')                        # another trajectory
-        refuse(plans[0][1], False, message='unknown joints [\'tail_joint\']')   # at fault itself
-        time.sleep(1.0)
-        assert len(plans) == 1
-        for attempt in (2, 3):
-            refuse(plans[-1][1], True)
-            client.wait_for(lambda: len(plans) == attempt, 10.0, f'plan {attempt}')
-        refuse(plans[-1][1], True)
+        refused = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  20.0, 'the refusal')[0]
+        assert 'refused' in refused.message and 'unknown joints' in refused.message
+        assert status_values(refused)['controller_error_code'] == str(int(bad))
+        assert len(controller.plans) == 1
 
-        def answers():
-            return [m for _, m in client.planner_status[mark['planner']:] if status_values(m).get('goal') == goal]
-        client.wait_for(lambda: len(answers()) == 4, 10.0, 'the planner to give the goal up')
-        *accepted, gave_up = answers()
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.6, 0.0, 0.45]).header.stamp)
+        gave_up = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  20.0, 'the planner to give the goal up')[0]
+        accepted = [m for m in _answers(client, mark, goal) if status_values(m).get('state') == 'accepted']
         assert [status_values(m)['attempt'] for m in accepted] == ['1', '2', '3']
-        assert all(m.level == DiagnosticStatus.OK for m in accepted)
         assert 'again (the last plan reached the controller too late)' in accepted[1].message
-        assert gave_up.level == DiagnosticStatus.ERROR and 'too late 3 times' in gave_up.message, gave_up.message
-        stamps = [p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for _, p in plans]
+        assert 'too late 3 times' in gave_up.message, gave_up.message
+        stamps = [p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in controller.plans[1:]]
         assert stamps == sorted(stamps) and len(set(stamps)) == 3
         time.sleep(0.5)
-        assert len(plans) == 3                                   # not planned a fourth time
+        assert len(controller.plans) == 4                        # not planned a fourth time
+        controller.server.destroy()
+
+
+def test_a_plan_the_controller_never_answers_ends_aborted_with_the_reason(tmp_path):
+    """No goal stays accepted forever: a controller that takes a plan and never gives its result
+    ends the goal as aborted, RESULT_MARGIN s after the plan's end."""
+    with running_stack('/sys9', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        controller = StandInController(client, ['silent'])
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        accepted = client.wait_for(lambda: [m for m in _answers(client, mark, goal)
+                                            if status_values(m).get('state') == 'accepted'], 20.0, 'accepted')[0]
+        bound = float(status_values(accepted)['duration']) + RESULT_MARGIN + 5.0
+        aborted = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  bound, f'the goal to end within {bound:.1f} s')[0]
+        assert status_values(aborted)['state'] == 'aborted' and 'no result from the controller' in aborted.message
+        controller.server.destroy()
 
 
 def test_a_node_asked_with_sigusr1_writes_every_threads_stack_and_runs_on(tmp_path):

@@ -59,13 +59,17 @@ class Start(NamedTuple):
 @dataclass
 class Goal:
     """A goal as the node took it: its kind (``'pose'``, ``'path'``, ``'pick'``), its key (the
-    header stamp as text), ``plan(start_state, gripper)`` that plans it, and when it came (wall s)."""
+    header stamp as text, or the action goal's id), ``plan(start_state, gripper)`` that plans it,
+    and when it came (wall s). An action goal also has ``finish(outcome, message, code, duration)``,
+    called once when it ends, and ``feedback(phase, time_left, tracking_error)``."""
 
     kind: str
     key: str
     plan: Callable
     came: float = 0.0
     attempt: int = 0              # how many times it was planned again after a late verdict
+    finish: Callable | None = None
+    feedback: Callable | None = None
 
 
 @dataclass

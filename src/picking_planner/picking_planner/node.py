@@ -1,10 +1,13 @@
 """``picking-planner``: the planner node, a ROS shell around the planning core and the goal policy.
 
-Subscribes ``goal_pose`` (PoseStamped), ``goal_path`` (PoseArray),
-``pick_target`` (PoseStamped), ``joint_states`` and ``joint_commands`` (the
-controller's reference, so that a goal mid-motion continues smoothly);
-publishes ``joint_trajectory``, ``planned_path`` and, for every goal,
-``planner_status``: OK with a summary, or ERROR with the reason.
+Serves the actions ``move_to_pose``, ``follow_path`` and ``pick`` (picking_interfaces), and takes
+the same goals on the topics ``goal_pose`` (PoseStamped), ``goal_path`` (PoseArray) and
+``pick_target`` (PoseStamped); subscribes ``joint_states`` and ``joint_commands`` (the
+controller's reference, so that a goal mid-motion continues smoothly). Every plan runs through
+the controller's ``follow_joint_trajectory`` action: a goal ends with the controller's result
+(see lifecycle.py). Publishes each plan sent on ``planned_trajectory``, its tool path on
+``planned_path``, and every goal's transitions on ``planner_status`` (accepted, executing,
+then succeeded, aborted, superseded, canceled or refused, with the reason).
 
 The method is the ``method`` parameter (pose goals) or ``path_method`` (path
 goals), both settable at run time; ``picking-goal --method`` sets them for one
@@ -14,13 +17,19 @@ goal. Every parameter is validated when it is set.
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
+from action_msgs.msg import GoalStatus
+from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
+from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
+from rclpy.task import Future
 from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
@@ -29,13 +38,14 @@ from trajectory_msgs.msg import JointTrajectory
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder
 from picking_common.run import run_node
-from picking_common.status import Level, stamp_key, status, status_values
+from picking_common.status import Level, stamp_key, status
 from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
 
 from .kinematics import ArmModel, Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .pick_cycle import PickCycle, PickSettings
 from .goal_policy import WAIT_LIMIT, Goal, GoalPolicy
+from .lifecycle import Ending, Flight, Lifecycle, Outcome
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
 
@@ -82,17 +92,22 @@ class PlannerNode(Node):
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
         # message classes) where this middleware reads them back as the same messages.
         self.codec = Codec()
-        if not self.codec.raw:
-            self.get_logger().warning('this middleware does not read back our CDR bytes: trajectories are built as '
-                                      'messages (slower)')
-        self.pub_traj = self.create_publisher(JointTrajectory, 'joint_trajectory', RELIABLE)
+        self.messages = Codec(raw=False)          # action goals are messages
+        self.lifecycle = Lifecycle()
+        self.controller = ActionClient(self, FollowJointTrajectory, 'follow_joint_trajectory')
+        self.pub_traj = self.create_publisher(JointTrajectory, 'planned_trajectory', RELIABLE)
         self.pub_path = self.create_publisher(Path, 'planned_path', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'planner_status', BURST)
         self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
-        self.sub_controller = self.create_subscription(DiagnosticStatus, 'controller_status',
-                                                       self._on_controller_status, RELIABLE)
+        self.actions = [ActionServer(self, action, name, execute_callback=partial(self._execute, kind, plan),
+                                     goal_callback=lambda _: GoalResponse.ACCEPT,
+                                     cancel_callback=self._cancel)
+                        for action, name, kind, plan in (
+                            (MoveToPose, 'move_to_pose', 'pose', lambda g: self._plan_pose(g.pose)),
+                            (FollowPath, 'follow_path', 'path', lambda g: self._plan_path(g.path)),
+                            (Pick, 'pick', 'pick', lambda g: self._plan_pick(g.target)))]
         self._superseded = 0          # goals answered as superseded since the last log line
         self._superseded_logged = 0.0
         # The measured state and the controller's reference, taken when a goal comes: no
@@ -183,82 +198,161 @@ class PlannerNode(Node):
             raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
                              '(no TF here: give poses in the base frame, or leave frame_id empty)')
 
+    def _plan_pose(self, pose_stamped):
+        self._check_frame(pose_stamped.header)
+        return lambda start, _: self.planner.plan_pose(start, msg_pose(pose_stamped.pose))
+
+    def _plan_path(self, pose_array):
+        self._check_frame(pose_array.header)
+        if not pose_array.poses:
+            raise ValueError('the path has no poses')
+        poses = [msg_pose(p) for p in pose_array.poses]
+        return lambda start, _: self.planner.plan_path(start, poses)
+
+    def _plan_pick(self, target):
+        self._check_frame(target.header)
+        pose = msg_pose(target.pose)
+        return lambda start, gripper: PickCycle(self.planner, self.pick).plan(start, pose, gripper_start=gripper)
+
+    # -- goals from the topics -----------------------------------------------------------
     def _take(self, sub, msg, kind, plan):
         """The newest goal waiting on ``sub`` (every older one answered as superseded), planned with
-        ``plan(msg, start_state, gripper)`` unless it is a resend of a goal already taken."""
-        msg = newest_waiting(sub, msg, lambda old: self._supersede(kind, stamp_key(old.header.stamp)))
+        ``plan(msg)`` unless it is a resend of a goal already taken."""
+        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, stamp_key(old.header.stamp)))
         key = stamp_key(msg.header.stamp)
         repeat, answer = self.policy.repeat(key, serialize_message(msg), self._now())
         if repeat:
-            if answer is not None:            # (None: it is still waiting)
+            if answer is not None:            # (None: it is still in flight)
                 self.pub_status.publish(answer)
             self.get_logger().info(f'goal {key} came again: its answer was sent again, it is not planned twice')
             return
         try:
-            self._check_frame(msg.header)
+            planner = plan(msg)
         except ValueError as exc:
-            self._refuse(kind, key, str(exc))
+            self._end(Goal(kind, key, None), Ending(Outcome.REFUSED, str(exc)))
             return
-        self._handle(Goal(kind, key, lambda start, gripper: plan(msg, start, gripper), self._now()))
+        self._handle(Goal(kind, key, planner, self._now()))
 
     def _on_goal_pose(self, msg):
-        self._take(self.sub_pose, msg, 'pose', lambda m, start, _: self.planner.plan_pose(start, msg_pose(m.pose)))
+        self._take(self.sub_pose, msg, 'pose', self._plan_pose)
 
     def _on_goal_path(self, msg):
-        def plan(m, start, _):
-            if not m.poses:
-                raise ValueError('goal_path has no poses')
-            return self.planner.plan_path(start, [msg_pose(p) for p in m.poses])
-        self._take(self.sub_path, msg, 'path', plan)
+        self._take(self.sub_path, msg, 'path', self._plan_path)
 
     def _on_pick_target(self, msg):
-        self._take(self.sub_pick, msg, 'pick', lambda m, start, gripper: PickCycle(self.planner, self.pick).plan(
-            start, msg_pose(m.pose), gripper_start=gripper))
+        self._take(self.sub_pick, msg, 'pick', self._plan_pick)
+
+    # -- goals from the actions ----------------------------------------------------------
+    async def _execute(self, kind, plan, handle):
+        """One action goal, through the same lifecycle as the topics' goals; its result is the
+        controller's (or the reason it never ran)."""
+        key = bytes(handle.goal_id.uuid).hex()
+        done = Future()
+        result_type = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}[kind].Result
+        feedback_type = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}[kind].Feedback
+
+        def finish(outcome, message, code, duration):
+            if not done.done():
+                done.set_result(result_type(outcome=int(outcome), message=message, controller_error_code=code,
+                                            duration=duration))
+
+        def feedback(phase, time_left, tracking_error):
+            handle.publish_feedback(feedback_type(phase=phase, time_left=time_left, tracking_error=tracking_error))
+
+        try:
+            planner = plan(handle.request)
+        except ValueError as exc:
+            goal = Goal(kind, key, None, self._now(), finish=finish)
+            self._end(goal, Ending(Outcome.REFUSED, str(exc)))
+        else:
+            self._handle(Goal(kind, key, planner, self._now(), finish=finish, feedback=feedback))
+        result = await done
+        if result.outcome == Outcome.SUCCEEDED:
+            handle.succeed()
+        elif result.outcome == Outcome.CANCELED and handle.is_cancel_requested:
+            handle.canceled()
+        else:
+            handle.abort()
+        return result
+
+    def _cancel(self, handle):
+        """A goal in flight is canceled at the controller (which brakes the arm to rest, then
+        answers); a waiting one ends at once."""
+        key = bytes(handle.goal_id.uuid).hex()
+        flight = self.lifecycle.flights.get(key)
+        if flight is not None:
+            flight.cancel = True
+            if flight.handle is not None:
+                flight.handle.cancel_goal_async()
+            return CancelResponse.ACCEPT
+        waiting = self.policy.waiting
+        if waiting is not None and waiting.key == key:
+            self.policy.waiting = None
+            self._end(waiting, Ending(Outcome.CANCELED, 'canceled before it was planned'))
+            return CancelResponse.ACCEPT
+        return CancelResponse.REJECT
+
+    # -- the lifecycle -------------------------------------------------------------------
+    def _end(self, goal, ending, duration=0.0):
+        """A goal's final answer: on planner_status, in the log, and to its action client."""
+        outcome = ending.outcome
+        level = {Outcome.SUCCEEDED: Level.OK, Outcome.SUPERSEDED: Level.WARN, Outcome.CANCELED: Level.WARN}.get(
+            outcome, Level.ERROR)
+        text = f'{goal.kind} goal {outcome.word}: {ending.message}'
+        self._answer(goal.key, status('picking_planner', level, text, goal=goal.key, kind=goal.kind,
+                                      state=outcome.word, controller_error_code=ending.code))
+        if outcome == Outcome.SUPERSEDED:
+            self._superseded += 1
+            if self._now() - self._superseded_logged > 1.0:
+                self.get_logger().warn(f'{self._superseded} goals superseded by newer ones')
+                self._superseded, self._superseded_logged = 0, self._now()
+        elif level == Level.ERROR:
+            self.get_logger().error(text)
+        else:
+            self.get_logger().info(text)
+        if goal.finish is not None:
+            goal.finish(outcome, ending.message, ending.code, duration)
+
+    def _end_waiting(self, kind, key):
+        self._end(Goal(kind, key, None), Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
 
     def _answer(self, key, msg):
         """Publish the answer to goal ``key`` (kept, should the goal come again)."""
         self.policy.answered(key, msg)
         self.pub_status.publish(msg)
 
-    def _supersede(self, kind, key):
-        self._answer(key, status('picking_planner', Level.WARN, f'{kind} goal superseded by a newer goal before '
-                                 'it was planned', goal=key, kind=kind))
-        self._superseded += 1
-        if self._now() - self._superseded_logged > 1.0:
-            self.get_logger().warn(f'{self._superseded} goals superseded by newer ones before they were planned')
-            self._superseded, self._superseded_logged = 0, self._now()
-
-    def _refuse(self, kind, key, reason):
-        self._answer(key, status('picking_planner', Level.ERROR, f'{kind} goal refused: {reason}', goal=key, kind=kind))
-        self.get_logger().error(f'{kind} goal refused: {reason}')
-
     def _ready(self):
         """None when a goal can be planned now, else why not (the arm's state or a controller unknown yet)."""
         if self.measured() is None:
             return 'no joint_states received: the planner does not know where the arm is'
-        if self.pub_traj.get_subscription_count() == 0:
-            return f'no controller subscribes to {self.pub_traj.topic_name}: the plan cannot be sent'
+        if not self.controller.server_is_ready():
+            return 'no controller serves follow_joint_trajectory: the plan cannot be run'
         return None
 
     def _serve_waiting(self):
         """The goal that waits for the arm's state or a controller: planned once both are known,
-        refused after a few seconds (discovery may still be running when a node starts)."""
+        refused after a few seconds (discovery may still be running when a node starts). Goals
+        the controller leaves unanswered end as aborted."""
         why = self._ready() if self.policy.waiting is not None else None
         ready, refused = self.policy.waited(why is None, self._now())
         if ready is not None:
             self._handle(ready)
         if refused is not None:
-            self._refuse(refused.kind, refused.key, f'{why} (waited {WAIT_LIMIT:g} s)')
+            self._end(refused, Ending(Outcome.REFUSED, f'{why} (waited {WAIT_LIMIT:g} s)'))
+        for flight, ending in self.lifecycle.overdue(self._now(), self._ros_now()):
+            if flight.handle is not None:
+                flight.handle.cancel_goal_async()
+            self._end(flight.goal, ending, flight.duration)
 
     def _handle(self, goal):
-        """Plan a goal and send the plan; a goal that comes before the arm's state or a controller
-        is known waits (never blocking the executor)."""
+        """Plan a goal and send the plan to the controller; a goal that comes before the arm's
+        state or a controller is known waits (never blocking the executor)."""
         if self._ready() is not None:
             old = self.policy.wait(goal)
             if old is not None:
-                self._supersede(old.kind, old.key)
+                self._end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
             return
-        kind, key, policy = goal.kind, goal.key, self.policy
+        kind, policy = goal.kind, self.policy
         measured = self.measured()
         t0 = time.perf_counter()
         try:
@@ -272,7 +366,7 @@ class PlannerNode(Node):
                     break
                 delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
-            self._refuse(kind, key, str(exc))
+            self._end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
         policy.planned(goal, planning_ms * 1e-3)
@@ -281,47 +375,83 @@ class PlannerNode(Node):
         own = plan.samples(period)
         points, stamp = policy.points(own, start, period, names)
         try:
-            # Checked as the controller will check it: a plan it would reject is never sent as accepted.
+            # Checked as the controller will check it: a plan it would refuse is never sent.
             check_joint_limits(self.arm, *points, names=names)
         except Unreachable as exc:
-            self._refuse(kind, key, f'the plan breaks a limit (from {start.words()}: the arm\'s motion '
-                                    f'cannot be carried on within it): {exc}')
+            self._end(goal, Ending(Outcome.REFUSED, f'the plan breaks a limit (from {start.words()}: the arm\'s '
+                                                    f'motion cannot be carried on within it): {exc}'))
             return
         stamp_ns = int(round(stamp * 1e9))
-        self.pub_traj.publish(self.codec.joint_trajectory(stamp_ns, '', names, *points))
-        policy.sent_plan(goal, plan.trajectory, start, names, stamp_key(stamp_ns), self._ros_now(),
+        trajectory = self.messages.joint_trajectory(stamp_ns, '', names, *points)
+        flight = self.lifecycle.sent(Flight(
+            goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],
+            self._now(), stamp_key(stamp_ns)))
+        future = self.controller.send_goal_async(FollowJointTrajectory.Goal(trajectory=trajectory),
+                                                 feedback_callback=partial(self._on_feedback, goal))
+        future.add_done_callback(partial(self._on_response, goal))
+        self.pub_traj.publish(trajectory)
+        policy.sent_plan(goal, plan.trajectory, start, names, flight.trajectory, self._ros_now(),
                          self.get_parameter('reference_timeout').value)
         summary = plan.summary(period)
-        segments = '; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments)
-        again = ' again (the last plan reached the controller too late)' if goal.attempt else ''
-        self._answer(key, status(
-            'picking_planner', Level.OK, f'{kind} goal accepted{again}: {plan.method}, {plan.duration:.3f} s',
-            goal=key, kind=kind, method=plan.method, duration=plan.duration, start=start.source,
-            peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
-            segments=segments, planning_ms=planning_ms, attempt=goal.attempt + 1, **getattr(plan, 'extra', {})))
+        flight.extra = dict(method=plan.method, duration=plan.duration, start=start.source,
+                            peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
+                            segments='; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments),
+                            planning_ms=planning_ms, attempt=goal.attempt + 1, **getattr(plan, 'extra', {}))
         self._publish_tool_path(own[1])
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
-    def _on_controller_status(self, msg):
-        """A goal whose plan the controller refused as late is planned again, from where the arm
-        is now, further ahead (see :meth:`GoalPolicy.late`), or answered as not run."""
-        if Level.of(msg.level) != Level.ERROR:
+    def _transition(self, goal, state, words):
+        flight = self.lifecycle.flights.get(goal.key)
+        extra = flight.extra if flight is not None else {}
+        again = ' again (the last plan reached the controller too late)' if goal.attempt else ''
+        self._answer(goal.key, status('picking_planner', Level.OK, f'{goal.kind} goal {state}{again}: {words}',
+                                      goal=goal.key, kind=goal.kind, state=state, **extra))
+
+    def _on_response(self, goal, future):
+        handle = future.result()
+        ending = self.lifecycle.response(goal.key, handle.accepted)
+        if ending is not None:
+            self._end(goal, ending)
             return
-        values = status_values(msg)
-        late = self.policy.late(values.get('trajectory')) if values.get('late') == 'True' else None
-        if late is None:
+        flight = self.lifecycle.flights.get(goal.key)
+        if flight is None:                    # ended meanwhile (overdue)
+            handle.cancel_goal_async()
             return
-        goal = late.goal
-        if not late.again:
-            self._answer(goal.key, status(
-                'picking_planner', Level.ERROR, f'{goal.kind} goal not run: its plan reached the controller '
-                f'too late {goal.attempt + 1} times (a stalled or overloaded machine?)', goal=goal.key, kind=goal.kind))
-            self.get_logger().error(f'{goal.kind} goal {goal.key}: its plan reached the controller too late '
-                                    f'{goal.attempt + 1} times; not planned again')
+        flight.handle = handle
+        if flight.cancel:
+            handle.cancel_goal_async()
+        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s")
+        handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
+
+    def _on_feedback(self, goal, msg):
+        fb = msg.feedback
+        error = float(np.max(np.abs(fb.error.positions))) if len(fb.error.positions) else 0.0
+        if self.lifecycle.feedback(goal.key, error):
+            self._transition(goal, 'executing', 'the controller runs its plan')
+        flight = self.lifecycle.flights.get(goal.key)
+        if goal.feedback is not None and flight is not None:
+            phase, left = flight.phase(self._ros_now())
+            goal.feedback(phase, left, error)
+
+    def _on_result(self, goal, flight, future):
+        response = future.result()
+        words = {GoalStatus.STATUS_SUCCEEDED: 'succeeded', GoalStatus.STATUS_CANCELED: 'canceled'}.get(
+            response.status, 'aborted')
+        ending = self.lifecycle.result(goal.key, words, response.result.error_code, response.result.error_string)
+        if ending is None:
+            return                            # ended already (overdue)
+        if not ending.late:
+            self._end(goal, ending, flight.duration)
+            return
+        late = self.policy.late(flight.trajectory)
+        if late is None or not late.again:
+            self._end(goal, Ending(Outcome.REFUSED, f'its plan reached the controller too late {goal.attempt + 1} '
+                                                    f'times (a stalled or overloaded machine?): {ending.message}',
+                                   ending.code))
             return
         self.get_logger().warning(f'{goal.kind} goal {goal.key}: the controller got its plan too late '
-                                  f'({msg.message}); planning it again, further ahead')
-        self._handle(goal)
+                                  f'({ending.message}); planning it again, further ahead')
+        self._handle(late.goal)
 
     def _publish_tool_path(self, q):
         """The tool poses of the plan (every other point) on ``planned_path``, for RViz or Foxglove."""

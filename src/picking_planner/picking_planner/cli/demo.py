@@ -32,6 +32,8 @@ def run_ros_part(args, config, out, demo, stack_initial):
     from diagnostic_msgs.msg import DiagnosticStatus
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Path as PathMsg
+    from picking_interfaces.action import Pick
+    from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from scipy.spatial.transform import Rotation
@@ -49,12 +51,12 @@ def run_ros_part(args, config, out, demo, stack_initial):
     events = {'ok': False}
     rclpy.init()
     node = rclpy.create_node(f'picking_demo_{os.getpid()}')
-    rec = Recorder(node, {'joint_trajectory': JointTrajectory, 'planned_path': PathMsg,
+    rec = Recorder(node, {'planned_trajectory': JointTrajectory, 'planned_path': PathMsg,
                           'planner_status': DiagnosticStatus, 'controller_status': DiagnosticStatus},
                    reliable)
     # The 100 Hz and 1 kHz streams as sensor data: a recorder must never slow the arm down.
     rec.add(node, {'joint_states': JointState, 'joint_commands': JointState}, qos_profile_sensor_data)
-    pub = node.create_publisher(PoseStamped, 'pick_target', reliable)
+    pick = ActionClient(node, Pick, 'pick')
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -77,8 +79,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
         return None
 
     try:
-        spin_until(lambda: rec.count('joint_states') > 10 and pub.get_subscription_count() > 0,
-                   30.0, 'the nodes to come up')
+        spin_until(lambda: rec.count('joint_states') > 10 and pick.server_is_ready(), 30.0, 'the nodes to come up')
         spin_until(lambda: rec.count('joint_commands') > 10, 30.0, 'the controller to hold the arm')
         log('nodes up: joint_states flowing, controller holding, planner listening')
         apple = PoseStamped()
@@ -89,34 +90,42 @@ def run_ros_part(args, config, out, demo, stack_initial):
         qx, qy, qz, qw = Rotation.from_euler('xyz', demo['apple_rpy']).as_quat()
         apple.pose.orientation.x, apple.pose.orientation.y = float(qx), float(qy)
         apple.pose.orientation.z, apple.pose.orientation.w = float(qz), float(qw)
-        n_plan, n_ctl = rec.count('planner_status'), rec.count('controller_status')
         t_sent = time.monotonic()
-        pub.publish(apple)
-        log(f'pick_target sent: apple at {[x, y, z]} m')
-        spin_until(lambda: status_after('planner_status', n_plan, lambda m: True), 20.0, 'the plan')
-        answer = status_after('planner_status', n_plan, lambda m: True)
-        if answer.level != DiagnosticStatus.OK:
-            raise RuntimeError(f'the planner refused the pick: {answer.message}')
-        values = {kv.key: kv.value for kv in answer.values}
+        progress = {'phase': None}
+
+        def on_feedback(msg):
+            if msg.feedback.phase != progress['phase']:
+                progress['phase'] = msg.feedback.phase
+                log(f'  {time.monotonic() - t_sent:5.2f} s  {msg.feedback.phase:<20} '
+                    f'{msg.feedback.time_left:5.2f} s left, tracking error {msg.feedback.tracking_error:.4f} rad')
+
+        sent = pick.send_goal_async(Pick.Goal(target=apple), feedback_callback=on_feedback)
+        log(f'pick goal sent: apple at {[x, y, z]} m')
+        spin_until(lambda: sent.done(), 20.0, 'the planner to take the pick goal')
+        handle = sent.result()
+        key = bytes(handle.goal_id.uuid).hex()
+        result = handle.get_result_async()
+
+        def answer(state=None):
+            return status_after('planner_status', 0, lambda m: {kv.key: kv.value for kv in m.values}.get('goal') == key
+                                and (state is None or {kv.key: kv.value for kv in m.values}.get('state') == state))
+        # The planner ends every goal with a result (the controller's, or the reason): no time-out needed
+        # but a guard against a node that died (spin_until checks them).
+        spin_until(lambda: answer('accepted') or result.done(), 60.0, 'the controller to accept the plan')
+        accepted = answer('accepted')
+        if accepted is None:
+            raise RuntimeError(f'the planner refused the pick: {result.result().result.message}')
+        values = {kv.key: kv.value for kv in accepted.values}
         events['plan'] = values
-        log(f'planned: {answer.message} in {values.get("planning_ms", "?")} ms; moving')
-        duration = float(values['duration'])
-        done = lambda m: m.level == DiagnosticStatus.ERROR or m.message.startswith('goal reached')  # noqa: E731
-        end = time.monotonic() + duration + 20.0
-        next_line = time.monotonic() + 1.0
-        while time.monotonic() < end and not status_after('controller_status', n_ctl, done):
-            time.sleep(0.05)
-            if time.monotonic() >= next_line:
-                log(f'  {time.monotonic() - t_sent:4.1f} s since pick_target (plan {duration:.1f} s)')
-                next_line += 1.0
-        outcome = status_after('controller_status', n_ctl, done)
-        if outcome is None:
-            raise RuntimeError('the cycle did not finish in time')
-        if outcome.level == DiagnosticStatus.ERROR:
-            raise RuntimeError(f'the controller reported: {outcome.message}')
+        log(f'planned: {accepted.message} in {values.get("planning_ms", "?")} ms; moving')
+        spin_until(result.done, float(values['duration']) + 60.0, 'the pick result')
+        done = result.result()
+        if done.result.outcome != Pick.Result.SUCCEEDED:
+            raise RuntimeError(f'the pick did not succeed: {done.result.message}')
         events['cycle_wall'] = time.monotonic() - t_sent
-        events['goal'] = {kv.key: kv.value for kv in outcome.values}
-        log(f'cycle done: goal reached {events["cycle_wall"]:.2f} s after sending the pick_target')
+        reached = status_after('controller_status', 0, lambda m: m.message == 'goal reached')
+        events['goal'] = {kv.key: kv.value for kv in reached.values} if reached is not None else {}
+        log(f'cycle done: {done.result.message}, {events["cycle_wall"]:.2f} s after sending the pick goal')
         time.sleep(0.5)                          # a last half second of joint_states
         if not args.quick:
             events['arc'] = run_arc_scenario(demo, spin_until, rec)
@@ -142,7 +151,7 @@ def run_arc_scenario(demo, spin_until, rec):
     log(f'scenario 2, Sec. 3.1 arc: P1 P2 P3 scaled by {scale} m, at {np.round(pts, 3).tolist()}')
     first = subprocess.run([str(HERE / 'picking-goal'), 'pose', *map(str, pts[0]), '--method', 'quintic'],
                            capture_output=True, text=True, timeout=120, env=os.environ.copy())
-    n = rec.count('joint_trajectory')
+    n = rec.count('planned_trajectory')
     arc = subprocess.run([str(HERE / 'picking-goal'), 'path', '--arc', '--pose', *map(str, pts[1]),
                           '--pose', *map(str, pts[2])],
                          capture_output=True, text=True, timeout=120, env=os.environ.copy())
@@ -152,7 +161,7 @@ def run_arc_scenario(demo, spin_until, rec):
         if run.returncode != 0:
             said = (run.stderr.strip() or run.stdout.strip() or f'exit code {run.returncode}').splitlines()[-1]
             raise RuntimeError(f'the arc scenario failed: {what}: {said.strip()}')
-    spin_until(lambda: rec.count('joint_trajectory') > n, 5.0, 'the arc trajectory')
+    spin_until(lambda: rec.count('planned_trajectory') > n, 5.0, 'the arc trajectory')
     return {'points': [p.tolist() for p in pts], 'trajectory_index': n, 'scale': scale}
 
 

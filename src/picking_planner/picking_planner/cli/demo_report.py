@@ -99,7 +99,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
     demo, planner_params = load_demo_settings(config)
     planner_yaml = yaml.safe_load((config / 'planner.yaml').read_text())
     params = {**next(iter(planner_yaml.values()))['ros__parameters'], **planner_params}
-    trajectories = rec.messages('joint_trajectory')
+    trajectories = rec.messages('planned_trajectory')
     t_recv, pick_msg = trajectories[0]
     names, t, q, qd, qdd = planned_arrays(pick_msg, t_recv)
     t_meas, q_meas = measured_arrays(rec.messages('joint_states'), names)
@@ -223,7 +223,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
 
 
 def arc_section(rec, arc_event, arm, names):
-    trajectories = rec.messages('joint_trajectory')
+    trajectories = rec.messages('planned_trajectory')
     t_recv, msg = trajectories[arc_event['trajectory_index']]
     names_a, t, q, _, _ = planned_arrays(msg, t_recv)
     t_meas, q_meas = measured_arrays(rec.messages('joint_states'), names_a)

@@ -1,4 +1,4 @@
-"""``picking-goal``: send a goal to the planner, wait for the plan and the motion, report.
+"""``picking-goal``: send a goal to the planner's action, follow it, report its result.
 
     picking-goal pose 0.6 0.1 0.4 --rpy 180 0 0 [--method quintic|cubic|lspb|line]
     picking-goal path --pose 0.6 0.1 0.4 --pose 0.5 -0.2 0.5 --rpy 180 0 0 [--method via_lspb|...]
@@ -8,11 +8,12 @@
 Positions are metres in base_link; ``--rpy`` is roll, pitch, yaw in degrees (fixed
 axes x, y, z), ``--quat`` a quaternion x y z w. ``--method`` sets the planner's
 ``method`` (pose goals) or ``path_method`` (path goals) parameter for this goal
-and after it. Add ``--ros-args -r __ns:=/arm2`` to talk to another arm.
+and after it. Add ``--ros-args -r __ns:=/arm2`` to talk to another arm. Ctrl-C
+cancels the goal: the arm brakes to rest within its limits.
 
-Exit codes: 0 the goal was reached; 1 the planner refused it; 2 bad arguments;
-3 the controller reported a failure (or the planner gave the goal up, its plans
-having reached the controller too late three times); 4 timed out.
+Exit codes: 0 the goal succeeded; 1 it was refused (never ran: unreachable, a
+bad goal, the controller refused its plan); 2 bad arguments; 3 it ended early
+(aborted, superseded by another goal, canceled); 4 timed out.
 """
 
 from __future__ import annotations
@@ -24,20 +25,17 @@ import time
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus
+from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from picking_interfaces.action import FollowPath, MoveToPose, Pick
+from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from scipy.spatial.transform import Rotation
 
-from picking_common.status import stamp_key, status_values
-
-RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
-RESEND_EVERY = 1.0   # s without an answer before the goal is sent again
 
 
 def build_parser():
@@ -45,7 +43,7 @@ def build_parser():
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--timeout', type=float, default=30.0, help='s to wait for each answer')
-    parser.add_argument('--no-wait', action='store_true', help='return once the planner has answered')
+    parser.add_argument('--no-wait', action='store_true', help='return once the planner has taken the goal')
     sub = parser.add_subparsers(dest='kind', required=True)
     for kind in ('pose', 'pick'):
         p = sub.add_parser(kind, help='move the tool to a pose' if kind == 'pose' else
@@ -86,14 +84,6 @@ def make_pose(xyz, quat):
 
 
 class GoalClient(Node):
-    def __init__(self):
-        super().__init__(f'picking_goal_{os.getpid()}')
-        self.planner_status, self.controller_status = [], []
-        self.sub_planner = self.create_subscription(DiagnosticStatus, 'planner_status',
-                                                    lambda m: self.planner_status.append(m), RELIABLE)
-        self.sub_controller = self.create_subscription(DiagnosticStatus, 'controller_status',
-                                                       lambda m: self.controller_status.append(m), RELIABLE)
-
     def spin_until(self, predicate, timeout):
         end = time.monotonic() + timeout
         while time.monotonic() < end:
@@ -104,104 +94,91 @@ class GoalClient(Node):
         return None
 
 
+def set_method(args, node):
+    """Set the planner's method parameter for this goal; an exit code on failure, else None."""
+    name = 'path_method' if args.kind == 'path' else 'method'
+    client = AsyncParameterClient(node, 'picking_planner')
+    if not client.wait_for_services(timeout_sec=args.timeout):
+        print('picking-goal: no planner answers (is picking-planner running in this namespace?)', file=sys.stderr)
+        return EXIT_TIMEOUT
+    future = client.set_parameters([Parameter(name, value=args.method)])
+    rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout)
+    result = future.result()
+    if result is None or not result.results[0].successful:
+        reason = result.results[0].reason if result else 'no answer'
+        print(f'picking-goal: the planner refused {name}={args.method!r}: {reason}', file=sys.stderr)
+        return EXIT_REFUSED
+    return None
+
+
+def make_goal(args, node):
+    """The action's name, type and goal message."""
+    quat = quaternion(args)
+    stamp = node.get_clock().now().to_msg()
+    if args.kind == 'path':
+        msg = PoseArray(poses=[make_pose(p, quat) for p in args.pose])
+    else:
+        msg = PoseStamped(pose=make_pose(args.xyz, quat))
+    msg.header.frame_id, msg.header.stamp = args.frame, stamp
+    if args.kind == 'path':
+        return 'follow_path', FollowPath, FollowPath.Goal(path=msg)
+    if args.kind == 'pick':
+        return 'pick', Pick, Pick.Goal(target=msg)
+    return 'move_to_pose', MoveToPose, MoveToPose.Goal(pose=msg)
+
+
 def run(args, node):
     if args.kind == 'path' and args.arc:
         args.method = 'arc'
-    quat = quaternion(args)
-    if args.kind == 'path':
-        topic, msg_type = 'goal_path', PoseArray
-    else:
-        topic, msg_type = ('goal_pose' if args.kind == 'pose' else 'pick_target'), PoseStamped
-    pub = node.create_publisher(msg_type, topic, RELIABLE)
-
     if getattr(args, 'method', None):
-        name = 'path_method' if args.kind == 'path' else 'method'
-        client = AsyncParameterClient(node, 'picking_planner')
-        if not client.wait_for_services(timeout_sec=args.timeout):
-            print('picking-goal: no planner answers (is picking-planner running in this namespace?)',
-                  file=sys.stderr)
-            return EXIT_TIMEOUT
-        future = client.set_parameters([Parameter(name, value=args.method)])
-        rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout)
-        result = future.result()
-        if result is None or not result.results[0].successful:
-            reason = result.results[0].reason if result else 'no answer'
-            print(f'picking-goal: the planner refused {name}={args.method!r}: {reason}', file=sys.stderr)
-            return EXIT_REFUSED
-
-    if not node.spin_until(lambda: pub.get_subscription_count() > 0
-                           and node.sub_planner.get_publisher_count() > 0, args.timeout):
-        print(f'picking-goal: nobody subscribes to {node.resolve_topic_name(topic)} '
+        failed = set_method(args, node)
+        if failed is not None:
+            return failed
+    name, action_type, goal = make_goal(args, node)
+    action = ActionClient(node, action_type, name)
+    if not action.wait_for_server(timeout_sec=args.timeout):
+        print(f'picking-goal: no {node.get_namespace().rstrip("/")}/{name} action server '
               '(is picking-planner running in this namespace?)', file=sys.stderr)
         return EXIT_TIMEOUT
-    # Hear the controller before moving: a status sent before discovery completes is lost.
-    if not args.no_wait and not node.spin_until(lambda: node.sub_controller.get_publisher_count() > 0,
-                                                args.timeout):
-        print('picking-goal: no controller publishes controller_status (is picking-controller running?)',
-              file=sys.stderr)
-        return EXIT_TIMEOUT
-    stamp = node.get_clock().now().to_msg()
-    key = stamp_key(stamp)
-    if args.kind == 'path':
-        msg = PoseArray()
-        msg.poses = [make_pose(p, quat) for p in args.pose]
-    else:
-        msg = PoseStamped()
-        msg.pose = make_pose(args.xyz, quat)
-    msg.header.frame_id = args.frame
-    msg.header.stamp = stamp
-    node.controller_status.clear()
     t_sent = time.monotonic()
-    # Sent again while no answer comes: a message sent as discovery completes can be lost
-    # (we see the planner's subscription before it sees us). The planner answers a repeat
-    # of the same goal (same stamp) again without planning it twice.
-    answer, end = None, t_sent + args.timeout
-    while answer is None and time.monotonic() < end:
-        pub.publish(msg)
-        answer = node.spin_until(lambda: next((m for m in node.planner_status
-                                               if status_values(m).get('goal') == key), None),
-                                 min(RESEND_EVERY, end - time.monotonic()))
-    if answer is None:
-        print(f'picking-goal: no answer from the planner within {args.timeout:g} s', file=sys.stderr)
+    progress = {'error': 0.0, 'phase': None}
+
+    def on_feedback(msg):
+        fb = msg.feedback
+        progress['error'] = max(progress['error'], fb.tracking_error)
+        if fb.phase != progress['phase']:
+            progress['phase'] = fb.phase
+            print(f'  {time.monotonic() - t_sent:6.2f} s  {fb.phase:<22} {fb.time_left:6.2f} s left', flush=True)
+
+    sent = action.send_goal_async(goal, feedback_callback=on_feedback)
+    handle = node.spin_until(lambda: sent.done() and sent.result(), args.timeout)
+    if handle is None or not handle.accepted:
+        print(f'picking-goal: the planner did not take the goal within {args.timeout:g} s', file=sys.stderr)
         return EXIT_TIMEOUT
-    t_planned = time.monotonic()
-    if answer.level != DiagnosticStatus.OK:
-        print(f'refused: {answer.message}')
-        return EXIT_REFUSED
-    v = status_values(answer)
-    print(f'planned: {answer.message} (answer after {1e3 * (t_planned - t_sent):.0f} ms)')
-    for key_name in ('segments', 'peak_velocity', 'peak_acceleration'):
-        if v.get(key_name):
-            print(f'  {key_name.replace("_", " ")}: {v[key_name]}')
+    print(f'sent: {name} goal taken by the planner ({1e3 * (time.monotonic() - t_sent):.0f} ms)')
     if args.no_wait:
         return EXIT_OK
-    duration = float(v.get('duration', 0.0))
-
-    def outcome():
-        # A plan the controller refused as late is planned again by the planner, which answers
-        # the goal with an ERROR should it give up.
-        for m in node.planner_status:
-            if m.level == DiagnosticStatus.ERROR and status_values(m).get('goal') == key:
-                return m
-        for m in node.controller_status:
-            if m.level == DiagnosticStatus.ERROR and status_values(m).get('late') != 'True':
-                return m
-            if m.message.startswith('goal reached'):
-                return m
-        return None
-    done = node.spin_until(outcome, duration + args.timeout)
+    result = handle.get_result_async()
+    try:
+        # The planner ends every goal (its controller's result, or a reason); the bound is a guard only.
+        done = node.spin_until(lambda: result.done() and result.result(), 3600.0)
+    except KeyboardInterrupt:
+        print('canceling: the arm brakes to rest', flush=True)
+        cancel = handle.cancel_goal_async()
+        node.spin_until(cancel.done, args.timeout)
+        done = node.spin_until(lambda: result.done() and result.result(), args.timeout)
+        if done is None:
+            return EXIT_TIMEOUT
     if done is None:
-        print(f'picking-goal: the motion did not finish within {duration + args.timeout:.1f} s', file=sys.stderr)
+        print('picking-goal: no result', file=sys.stderr)
         return EXIT_TIMEOUT
-    t_done = time.monotonic()
-    if done.level == DiagnosticStatus.ERROR:
-        print(f'failed: {done.message}')
-        return EXIT_FAILED
-    dv = status_values(done)
-    print(f'reached: goal reached {t_done - t_sent:.2f} s after sending (plan {duration:.3f} s); '
-          f'largest tracking error {float(dv.get("max_tracking_error", "nan")):.5f} rad, '
-          f'final error {float(dv.get("final_error", "nan")):.5f} rad')
-    return EXIT_OK
+    res, took = done.result, time.monotonic() - t_sent
+    outcome = {0: 'succeeded', 1: 'refused', 2: 'aborted', 3: 'superseded', 4: 'canceled'}.get(res.outcome, '?')
+    print(f'{outcome}: {res.message} ({took:.2f} s after sending; plan {res.duration:.3f} s; '
+          f'largest tracking error {progress["error"]:.5f} rad)')
+    if done.status == GoalStatus.STATUS_SUCCEEDED:
+        return EXIT_OK
+    return EXIT_REFUSED if res.outcome == action_type.Result.REFUSED else EXIT_FAILED
 
 
 def main(argv=None):
@@ -211,7 +188,7 @@ def main(argv=None):
     if not (np.isfinite(args.timeout) and args.timeout > 0):
         parser.error('--timeout must be > 0 s')
     rclpy.init(args=argv)
-    node = GoalClient()
+    node = GoalClient(f'picking_goal_{os.getpid()}')
     try:
         return run(args, node)
     except KeyboardInterrupt:

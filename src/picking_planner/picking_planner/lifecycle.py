@@ -1,0 +1,158 @@
+"""The life of a planner goal once its plan is sent, with no ROS in it.
+
+Every plan goes to the controller as a ``follow_joint_trajectory`` goal. The controller's goal
+response says whether it took the plan (**accepted**), its first feedback that the plan runs
+(**executing**), and its result how it ended: **succeeded**, **aborted** (a tolerance, lost
+feedback), **superseded** (our newer plan took over), **canceled**, or **refused** (it never ran:
+the controller refused the plan). A result that says the plan came too late is planned again
+(see :meth:`GoalPolicy.late`). A controller that does not answer in time ends the goal as aborted
+with the reason: no goal stays accepted forever.
+
+Times: ``wall`` is ``time.monotonic()``; plan times are on the controller's clock (ROS time).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+#: s the controller has to answer a plan (accept it or not) before the goal is aborted.
+RESPONSE_LIMIT = 3.0
+#: s after a plan's end that its result may take (the controller's goal time tolerance and
+#: settling included) before the goal is aborted.
+RESULT_MARGIN = 5.0
+
+#: FollowJointTrajectory result codes this module reads.
+INVALID_GOAL = -1
+INVALID_JOINTS = -2
+OLD_HEADER_TIMESTAMP = -3
+
+
+class Outcome(enum.IntEnum):
+    """How a goal ended (the ``outcome`` of the MoveToPose, FollowPath and Pick results)."""
+
+    SUCCEEDED = 0
+    REFUSED = 1
+    ABORTED = 2
+    SUPERSEDED = 3
+    CANCELED = 4
+
+    @property
+    def word(self):
+        return self.name.lower()
+
+
+@dataclass
+class Flight:
+    """A goal whose plan was sent to the controller, until its result."""
+
+    goal: object                  # goal_policy.Goal
+    start: float                  # the plan's start, controller clock, s
+    duration: float               # s
+    segments: list                # [(label, start, end)] in s from the plan's start
+    sent: float                   # wall s
+    trajectory: str = ''          # the plan's stamp, as the controller names it
+    state: str = 'sent'           # sent -> accepted -> executing
+    superseded: bool = False      # a newer plan of ours was sent after it
+    tracking_error: float = 0.0   # rad, the controller's newest feedback
+    handle: object = None         # the controller's goal handle, once accepted
+    cancel: bool = False          # its client asked to cancel it
+    extra: dict = field(default_factory=dict)
+
+    def phase(self, now):
+        """``(phase, time_left)`` at controller time ``now``: the segment the plan is in ('sent' or
+        'accepted' before it runs, 'starting' while the controller holds until its start time,
+        'settling' after its end)."""
+        elapsed = now - self.start
+        left = max(self.duration - elapsed, 0.0)
+        if self.state != 'executing':
+            return self.state, left
+        if elapsed < 0.0:
+            return 'starting', left
+        for label, begin, end in self.segments:
+            if begin <= elapsed < end:
+                return label, left
+        return 'settling', left
+
+
+@dataclass(frozen=True)
+class Ending:
+    """What a controller's answer means for a goal: plan it again (``late``), or end it with
+    ``outcome`` and ``message``; ``code`` is the controller's error code."""
+
+    outcome: Outcome | None
+    message: str
+    code: int = 0
+    late: bool = False
+
+
+class Lifecycle:
+    """The goals in flight to the controller, by goal key."""
+
+    def __init__(self):
+        self.flights = {}
+
+    def sent(self, flight):
+        """A plan went out: every goal before it that the controller still has is superseded by it."""
+        for other in self.flights.values():
+            other.superseded = True
+        self.flights[flight.goal.key] = flight
+        return flight
+
+    def response(self, key, accepted):
+        """The controller's goal response; an Ending when it did not take the plan."""
+        flight = self.flights.get(key)
+        if flight is None:
+            return None
+        if not accepted:
+            self.flights.pop(key)
+            return Ending(Outcome.REFUSED, 'the controller did not accept the plan (its goal was rejected)')
+        flight.state = 'accepted'
+        return None
+
+    def feedback(self, key, tracking_error):
+        """The controller's feedback: True the first time (the plan now runs)."""
+        flight = self.flights.get(key)
+        if flight is None:
+            return False
+        flight.tracking_error = tracking_error
+        first = flight.state != 'executing'
+        flight.state = 'executing'
+        return first
+
+    def result(self, key, status, code, text):
+        """The controller's result (``status``: 'succeeded', 'canceled' or 'aborted'): an Ending."""
+        flight = self.flights.pop(key, None)
+        if flight is None:
+            return None
+        if status == 'succeeded':
+            return Ending(Outcome.SUCCEEDED, 'the arm is at rest at the goal', code)
+        if status == 'canceled':
+            return Ending(Outcome.CANCELED, f'canceled: {text}' if text else 'canceled', code)
+        if flight.superseded and code in (INVALID_GOAL, OLD_HEADER_TIMESTAMP):
+            return Ending(Outcome.SUPERSEDED, 'superseded: a newer goal took the arm over', code)
+        if code == OLD_HEADER_TIMESTAMP:
+            return Ending(None, text, code, late=True)
+        if flight.state == 'executing' or code not in (INVALID_GOAL, INVALID_JOINTS):
+            return Ending(Outcome.ABORTED, f'the controller aborted it: {text}', code)
+        return Ending(Outcome.REFUSED, f'the controller refused the plan: {text}', code)
+
+    def cancel(self, key):
+        """The flight of goal ``key`` (to cancel at the controller), or None."""
+        return self.flights.get(key)
+
+    def overdue(self, wall, now):
+        """Flights the controller left unanswered too long, removed, with an Ending each: no
+        goal response RESPONSE_LIMIT s after sending, or no result RESULT_MARGIN s after the
+        plan's end (controller time ``now``)."""
+        ended = []
+        for key, flight in list(self.flights.items()):
+            if flight.state == 'sent' and wall - flight.sent > RESPONSE_LIMIT:
+                why = f'the controller did not answer the plan within {RESPONSE_LIMIT:g} s'
+            elif flight.state != 'sent' and now > flight.start + flight.duration + RESULT_MARGIN:
+                why = f'no result from the controller {RESULT_MARGIN:g} s after the plan\'s end'
+            else:
+                continue
+            del self.flights[key]
+            ended.append((flight, Ending(Outcome.ABORTED, why)))
+        return ended

@@ -1,0 +1,64 @@
+"""The planner's goal lifecycle without ROS: how the controller's answers end a goal."""
+
+from picking_planner.goal_policy import Goal
+from picking_planner.lifecycle import RESPONSE_LIMIT, RESULT_MARGIN, Flight, Lifecycle, Outcome
+
+OLD_HEADER_TIMESTAMP, INVALID_GOAL, PATH_TOLERANCE_VIOLATED = -3, -1, -4
+
+
+def flight(key, start=100.0, duration=2.0, sent=10.0):
+    return Flight(Goal('pick', key, None), start, duration, [('approach', 0.0, 1.0), ('grasp', 1.0, 2.0)], sent)
+
+
+def test_a_goal_goes_accepted_executing_then_ends_with_the_controllers_result():
+    life = Lifecycle()
+    f = life.sent(flight('a'))
+    assert f.phase(99.0) == ('sent', 3.0)
+    assert life.response('a', True) is None and f.state == 'accepted'
+    assert life.feedback('a', 0.01) is True and life.feedback('a', 0.02) is False
+    assert f.phase(99.9)[0] == 'starting' and f.phase(100.5) == ('approach', 1.5) and f.phase(101.5) == ('grasp', 0.5)
+    assert f.phase(102.5) == ('settling', 0.0) and f.tracking_error == 0.02
+    ending = life.result('a', 'succeeded', 0, '')
+    assert ending.outcome == Outcome.SUCCEEDED and not life.flights
+
+
+def test_the_controllers_verdicts_map_to_outcomes():
+    life = Lifecycle()
+    life.sent(flight('r'))
+    assert life.response('r', False).outcome == Outcome.REFUSED
+    life.sent(flight('i'))
+    life.response('i', True)
+    assert life.result('i', 'aborted', INVALID_GOAL, 'point 0: beyond').outcome == Outcome.REFUSED
+    life.sent(flight('p'))
+    life.response('p', True)
+    life.feedback('p', 0.2)
+    ending = life.result('p', 'aborted', PATH_TOLERANCE_VIOLATED, 'path tolerance violated')
+    assert ending.outcome == Outcome.ABORTED and 'path tolerance' in ending.message and ending.code == -4
+    life.sent(flight('c'))
+    assert life.result('c', 'canceled', 0, 'braked').outcome == Outcome.CANCELED
+    life.sent(flight('l'))
+    assert life.result('l', 'aborted', OLD_HEADER_TIMESTAMP, 'ends in the past').late
+
+
+def test_a_plan_preempted_by_our_newer_plan_is_superseded():
+    life = Lifecycle()
+    life.sent(flight('old'))
+    life.response('old', True)
+    life.sent(flight('new'))
+    assert life.result('old', 'aborted', INVALID_GOAL, 'preempted').outcome == Outcome.SUPERSEDED
+    # Late because the newer one took over first: superseded too, not planned again.
+    life.sent(flight('newest'))
+    assert life.result('new', 'aborted', OLD_HEADER_TIMESTAMP, 'late').outcome == Outcome.SUPERSEDED
+
+
+def test_an_unanswered_plan_ends_aborted_with_the_reason():
+    life = Lifecycle()
+    life.sent(flight('quiet', sent=10.0))
+    life.sent(flight('stuck', start=100.0, duration=2.0, sent=10.0)).state = 'executing'
+    assert life.overdue(10.0 + RESPONSE_LIMIT / 2, 101.0) == []
+    ended = life.overdue(10.0 + RESPONSE_LIMIT + 0.1, 101.0)
+    assert [(f.goal.key, e.outcome) for f, e in ended] == [('quiet', Outcome.ABORTED)]
+    assert 'did not answer' in ended[0][1].message
+    ended = life.overdue(20.0, 102.0 + RESULT_MARGIN + 0.1)
+    assert [f.goal.key for f, _ in ended] == ['stuck'] and 'no result' in ended[0][1].message
+    assert not life.flights
