@@ -99,6 +99,11 @@ class Lifecycle:
         self.flights[flight.goal.key] = flight
         return flight
 
+    def unanswered(self):
+        """True while a plan waits for the controller's goal response: the next plan waits too, so
+        that a burst of goals never queues up plans at the controller (one in flight at a time)."""
+        return any(f.state == 'sent' for f in self.flights.values())
+
     def response(self, key, accepted):
         """The controller's goal response; an Ending when it did not take the plan."""
         flight = self.flights.get(key)

@@ -327,6 +327,8 @@ class PlannerNode(Node):
             return 'no joint_states received: the planner does not know where the arm is'
         if not self.controller.server_is_ready():
             return 'no controller serves follow_joint_trajectory: the plan cannot be run'
+        if self.lifecycle.unanswered():
+            return 'the controller has not answered the last plan yet'
         return None
 
     def _serve_waiting(self):
@@ -410,6 +412,7 @@ class PlannerNode(Node):
     def _on_response(self, goal, future):
         handle = future.result()
         ending = self.lifecycle.response(goal.key, handle.accepted)
+        self._serve_waiting()                 # the goal that waited for this answer
         if ending is not None:
             self._end(goal, ending)
             return

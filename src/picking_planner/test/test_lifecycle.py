@@ -62,3 +62,12 @@ def test_an_unanswered_plan_ends_aborted_with_the_reason():
     ended = life.overdue(20.0, 102.0 + RESULT_MARGIN + 0.1)
     assert [f.goal.key for f, _ in ended] == ['stuck'] and 'no result' in ended[0][1].message
     assert not life.flights
+
+
+def test_one_plan_at_a_time_waits_for_the_controllers_answer():
+    life = Lifecycle()
+    assert not life.unanswered()
+    life.sent(flight('a'))
+    assert life.unanswered()
+    life.response('a', True)
+    assert not life.unanswered()
