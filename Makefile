@@ -1,5 +1,6 @@
 # make demo   the main job: the pick-and-place demo (creates .venv on first use)
 # make test   colcon build + colcon test of the packages, then the system tests in test/
+# make test-load  the end-to-end system tests again, beside four CPU-bound processes
 # make bench  the speed benchmarks (installs the optional peers to compare against)
 # make fuzz   the long run of the arbitrary-input tests (10 000 examples per function)
 SHELL := /bin/bash
@@ -21,7 +22,7 @@ export MPLBACKEND := Agg
 
 COLCON_PATHS := --base-paths src --build-base build --install-base install
 
-.PHONY: demo test unit system fuzz bench clean
+.PHONY: demo test test-load unit system fuzz bench clean
 
 $(STAMP): requirements.txt $(PACKAGE_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -54,6 +55,11 @@ unit: $(STAMP)
 # The system tests: several processes talking over ROS (pytest exits 5 when it finds none).
 system: $(STAMP)
 	$(BIN)/python -m pytest test -q
+
+# The end-to-end tests (a pose goal, a pick, a goal mid-motion, the floods, the demo's quick run, the faults)
+# beside four CPU-bound processes on the machine's cores, as when perception shares the arm's computer.
+test-load: $(STAMP)
+	$(BIN)/python -m pytest test -q -m load --cpu-load 4
 
 # The long run of the arbitrary-input (hypothesis) tests: 10 000 examples per function.
 fuzz: $(STAMP)

@@ -45,3 +45,34 @@ def pytest_runtest_makereport(item, call):
             lines = proc.output().splitlines()[-LOG_TAIL:]
             report.sections.append((f'{proc.name} (pid {proc.pid}) log, last {len(lines)} lines',
                                     '\n'.join(lines)))
+
+
+def pytest_addoption(parser):
+    parser.addoption('--cpu-load', type=int, default=0, metavar='N',
+                     help='run the tests beside N CPU-bound processes (make test-load: 4 on the two cores)')
+
+
+def pytest_configure(config):
+    config.addinivalue_line('markers', 'load: one of the end-to-end tests make test-load runs on a busy machine')
+
+
+@pytest.fixture(scope='session', autouse=True)
+def cpu_load(request):
+    """N busy processes for the whole run (--cpu-load N), as a perception pipeline loads the arm's
+    computer; each is stopped by its pid at the end, and the load average is reported."""
+    n = request.config.getoption('--cpu-load')
+    burners = [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(n)]
+    try:
+        yield n
+    finally:
+        if burners:
+            load = os.getloadavg()
+            for p in burners:
+                p.kill()
+                p.wait()
+            request.config.load_report = f'{n} CPU-bound processes; load average at the end {load[0]:.1f}'
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    if getattr(config, 'load_report', None):
+        terminalreporter.write_line(f'under load: {config.load_report}')

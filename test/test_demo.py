@@ -4,9 +4,12 @@ import json
 import os
 import subprocess
 
+import pytest
+
 from rosstack import BIN
 
 
+@pytest.mark.load
 def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
     done = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--out', str(tmp_path)], capture_output=True,
                           text=True, timeout=240, env=os.environ.copy())

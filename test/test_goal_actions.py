@@ -43,6 +43,7 @@ def result(client, handle, timeout=30.0):
     return client.wait_for(lambda: future.done() and future.result(), timeout, 'the result')
 
 
+@pytest.mark.load
 def test_a_pick_succeeds_through_its_phases(arm):
     client, actions = arm
     handle, feedback = send(client, actions['pick'], Pick.Goal(target=stamped(APPLE)))
@@ -65,6 +66,7 @@ def test_an_unreachable_goal_is_refused_with_the_reason(arm):
     assert 'reach' in done.result.message or 'unreachable' in done.result.message.lower(), done.result.message
 
 
+@pytest.mark.load
 def test_a_newer_goal_supersedes_the_running_one(arm):
     client, actions = arm
     first, _ = send(client, actions['move_to_pose'], MoveToPose.Goal(pose=stamped([0.6, -0.2, 0.45])))

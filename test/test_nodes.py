@@ -30,6 +30,7 @@ def arm1(tmp_path_factory):
         yield arm
 
 
+@pytest.mark.load
 def test_pose_goal_is_reached_within_1_mm(arm1):
     _, client = arm1
     target = [0.6, 0.1, 0.4]
@@ -214,6 +215,7 @@ def test_bad_trajectory_is_refused_by_the_controller(arm1, names, points, reason
     assert np.abs(client.last_positions() - before).max() < 1e-4
 
 
+@pytest.mark.load
 def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
     _, client = arm1
     client.watch_commands()
@@ -383,6 +385,7 @@ def _limited(stack):
     return [line for line in stack.controller.output().splitlines() if 'command limited' in line]
 
 
+@pytest.mark.load
 def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
     """10 000 goals at up to 1000 a second."""
     stack, client = arm1
@@ -395,6 +398,7 @@ def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
         assert found and abs(float(found[2])) <= 1.5 * float(found[3]), line
 
 
+@pytest.mark.load
 def test_a_flood_of_goals_while_the_controller_stalls_refuses_none(arm1):
     """The same flood while the controller stops for 20-80 ms every 0.3-0.7 s (SIGSTOP, as a
     loaded machine stops it): its reference leaves the plans sent, and each goal starts from
