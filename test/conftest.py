@@ -74,5 +74,12 @@ def cpu_load(request):
 
 
 def pytest_terminal_summary(terminalreporter, config):
+    """The goals the test clients followed, by how they ended (none may be left without a result)."""
     if getattr(config, 'load_report', None):
         terminalreporter.write_line(f'under load: {config.load_report}')
+    from rosstack import FINAL, GOALS, KILLED
+    if GOALS:
+        ends = {state: sum(1 for s in GOALS.values() if s == state) for state in (*FINAL, KILLED)}
+        lost = sum(1 for s in GOALS.values() if s not in (*FINAL, KILLED))
+        terminalreporter.write_line(f'goals followed: {len(GOALS)}; ' + ', '.join(
+            f'{state} {n}' for state, n in ends.items()) + f'; without a result: {lost}')

@@ -43,6 +43,11 @@ DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat().tolist()
 ARM = ArmModel.from_urdf(default_urdf())
 
 
+#: Every goal a test client heard of in this run: its key -> its newest state (for the run's tally).
+GOALS = {}
+#: The state of a goal whose planner a test killed while it ran: the controller's result is its end.
+KILLED = 'its planner killed (the controller finished its plan)'
+
 #: The nodes as processes, stopped by pid (the launcher's own).
 Process = NodeProcess
 
@@ -76,7 +81,7 @@ class Client(Node):
         self.states, self.commands, self.planner_status, self.controller_status = [], [], [], []
         self.create_subscription(JointState, 'joint_states', self._rec(self.states), RELIABLE)
         self._planner_sub = self.create_subscription(DiagnosticStatus, 'planner_status',
-                                                     self._rec(self.planner_status), RELIABLE)
+                                                     self._rec(self.planner_status, self._tally), RELIABLE)
         self._controller_sub = self.create_subscription(DiagnosticStatus, 'controller_status',
                                                         self._rec(self.controller_status), RELIABLE)
         self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', BURST)
@@ -104,11 +109,18 @@ class Client(Node):
                                                           qos_profile_sensor_data)
             self.wait_for(lambda: len(self.commands) > 20, 10.0, 'joint_commands')
 
-    def _rec(self, store):
+    def _rec(self, store, also=None):
         def callback(msg):
             with self.lock:
                 store.append((time.monotonic(), msg))
+            if also is not None:
+                also(msg)
         return callback
+
+    def _tally(self, msg):
+        values = status_values(msg)
+        if values.get('goal') and values.get('state'):
+            GOALS[f'{self.get_namespace()} {values["goal"]}'] = values['state']
 
     def wait_for(self, predicate, timeout=20.0, what='condition'):
         end = time.monotonic() + timeout

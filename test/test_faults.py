@@ -13,7 +13,7 @@ from picking_interfaces.action import MoveToPose, Pick
 from rclpy.action import ActionClient
 
 from picking_common.status import status_values
-from rosstack import make_pose, reach, running_stack
+from rosstack import GOALS, KILLED, make_pose, reach, running_stack
 
 pytestmark = pytest.mark.load
 
@@ -66,12 +66,14 @@ def test_a_planner_killed_mid_cycle_leaves_the_arm_held_and_a_restarted_one_carr
     result on controller_status) and holds; a restarted planner takes the next goal."""
     with running_stack('/flt2', tmp_path) as (stack, client):
         mark = client.mark()
-        action, _ = start_goal(client, Pick, 'pick', Pick.Goal(target=stamped([0.55, 0.15, 0.35])))
+        action, handle = start_goal(client, Pick, 'pick', Pick.Goal(target=stamped([0.55, 0.15, 0.35])))
         action.destroy()
         stack.planner.proc.kill()
         stack.planner.proc.wait()
         reached = client.controller_event(mark, 'goal reached', 60.0)
         assert reached.level == DiagnosticStatus.OK and held(client)
+        # Its planner is gone: the pick's result is the controller's, not an action result.
+        GOALS[f'{client.get_namespace()} {bytes(handle.goal_id.uuid).hex()}'] = KILLED
         stack.restart_planner()
         answer = reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]), timeout=60.0)
         assert status_values(answer)['state'] == 'accepted'
