@@ -20,17 +20,14 @@ import time
 from functools import partial
 
 import numpy as np
-from action_msgs.msg import GoalStatus
 from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionClient, ActionServer, GoalResponse
 from rclpy.node import Node
-from rclpy.task import Future
-from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -38,14 +35,13 @@ from trajectory_msgs.msg import JointTrajectory
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder
 from picking_common.run import run_node
-from picking_common.status import Level, stamp_key, status
-from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
+from picking_common.topics import BURST, RELIABLE, LatestMessage
 
-from .kinematics import ArmModel, Unreachable, pose_matrix
-from .kinematics.paths import check_joint_limits
-from .pick_cycle import PickCycle, PickSettings
-from .goal_policy import WAIT_LIMIT, Goal, GoalPolicy
-from .lifecycle import Ending, Flight, Lifecycle, Outcome
+from .goal_flow import GoalFlow
+from .goal_policy import GoalPolicy
+from .kinematics import ArmModel
+from .lifecycle import Lifecycle
+from .pick_cycle import PickSettings
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
 
@@ -56,14 +52,8 @@ PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'g
         'place_yaw_free', 'blend', 'blend_radius')
 
 
-def msg_pose(pose):
-    """4x4 matrix from a geometry_msgs/Pose; ValueError for NaN or a zero quaternion."""
-    p, o = pose.position, pose.orientation
-    return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
-
-
-class PlannerNode(Node):
-    """ROS interface of the planner."""
+class PlannerNode(GoalFlow, Node):
+    """ROS interface of the planner: its parameters, the arm's state, and (in :class:`GoalFlow`) its goals."""
 
     def __init__(self, **kwargs):
         super().__init__('picking_planner', **kwargs)
@@ -190,271 +180,6 @@ class PlannerNode(Node):
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(qdd))):
             return None
         return q, qd, qdd, stamp
-
-    # -- goals ---------------------------------------------------------------------------
-    def _check_frame(self, header):
-        frame = header.frame_id.lstrip('/')
-        if frame not in ('', self.arm.base_frame):
-            raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
-                             '(no TF here: give poses in the base frame, or leave frame_id empty)')
-
-    def _plan_pose(self, pose_stamped):
-        self._check_frame(pose_stamped.header)
-        return lambda start, _: self.planner.plan_pose(start, msg_pose(pose_stamped.pose))
-
-    def _plan_path(self, pose_array):
-        self._check_frame(pose_array.header)
-        if not pose_array.poses:
-            raise ValueError('the path has no poses')
-        poses = [msg_pose(p) for p in pose_array.poses]
-        return lambda start, _: self.planner.plan_path(start, poses)
-
-    def _plan_pick(self, target):
-        self._check_frame(target.header)
-        pose = msg_pose(target.pose)
-        return lambda start, gripper: PickCycle(self.planner, self.pick).plan(start, pose, gripper_start=gripper)
-
-    # -- goals from the topics -----------------------------------------------------------
-    def _take(self, sub, msg, kind, plan):
-        """The newest goal waiting on ``sub`` (every older one answered as superseded), planned with
-        ``plan(msg)`` unless it is a resend of a goal already taken."""
-        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, stamp_key(old.header.stamp)))
-        key = stamp_key(msg.header.stamp)
-        repeat, answer = self.policy.repeat(key, serialize_message(msg), self._now())
-        if repeat:
-            if answer is not None:            # (None: it is still in flight)
-                self.pub_status.publish(answer)
-            self.get_logger().info(f'goal {key} came again: its answer was sent again, it is not planned twice')
-            return
-        try:
-            planner = plan(msg)
-        except ValueError as exc:
-            self._end(Goal(kind, key, None), Ending(Outcome.REFUSED, str(exc)))
-            return
-        self._handle(Goal(kind, key, planner, self._now()))
-
-    def _on_goal_pose(self, msg):
-        self._take(self.sub_pose, msg, 'pose', self._plan_pose)
-
-    def _on_goal_path(self, msg):
-        self._take(self.sub_path, msg, 'path', self._plan_path)
-
-    def _on_pick_target(self, msg):
-        self._take(self.sub_pick, msg, 'pick', self._plan_pick)
-
-    # -- goals from the actions ----------------------------------------------------------
-    async def _execute(self, kind, plan, handle):
-        """One action goal, through the same lifecycle as the topics' goals; its result is the
-        controller's (or the reason it never ran)."""
-        key = bytes(handle.goal_id.uuid).hex()
-        done = Future()
-        result_type = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}[kind].Result
-        feedback_type = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}[kind].Feedback
-
-        def finish(outcome, message, code, duration):
-            if not done.done():
-                done.set_result(result_type(outcome=int(outcome), message=message, controller_error_code=code,
-                                            duration=duration))
-
-        def feedback(phase, time_left, tracking_error):
-            handle.publish_feedback(feedback_type(phase=phase, time_left=time_left, tracking_error=tracking_error))
-
-        try:
-            planner = plan(handle.request)
-        except ValueError as exc:
-            goal = Goal(kind, key, None, self._now(), finish=finish)
-            self._end(goal, Ending(Outcome.REFUSED, str(exc)))
-        else:
-            self._handle(Goal(kind, key, planner, self._now(), finish=finish, feedback=feedback))
-        result = await done
-        if result.outcome == Outcome.SUCCEEDED:
-            handle.succeed()
-        elif result.outcome == Outcome.CANCELED and handle.is_cancel_requested:
-            handle.canceled()
-        else:
-            handle.abort()
-        return result
-
-    def _cancel(self, handle):
-        """A goal in flight is canceled at the controller (which brakes the arm to rest, then
-        answers); a waiting one ends at once."""
-        key = bytes(handle.goal_id.uuid).hex()
-        flight = self.lifecycle.flights.get(key)
-        if flight is not None:
-            flight.cancel = True
-            if flight.handle is not None:
-                flight.handle.cancel_goal_async()
-            return CancelResponse.ACCEPT
-        waiting = self.policy.waiting
-        if waiting is not None and waiting.key == key:
-            self.policy.waiting = None
-            self._end(waiting, Ending(Outcome.CANCELED, 'canceled before it was planned'))
-            return CancelResponse.ACCEPT
-        return CancelResponse.REJECT
-
-    # -- the lifecycle -------------------------------------------------------------------
-    def _end(self, goal, ending, duration=0.0):
-        """A goal's final answer: on planner_status, in the log, and to its action client."""
-        outcome = ending.outcome
-        level = {Outcome.SUCCEEDED: Level.OK, Outcome.SUPERSEDED: Level.WARN, Outcome.CANCELED: Level.WARN}.get(
-            outcome, Level.ERROR)
-        text = f'{goal.kind} goal {outcome.word}: {ending.message}'
-        self._answer(goal.key, status('picking_planner', level, text, goal=goal.key, kind=goal.kind,
-                                      state=outcome.word, controller_error_code=ending.code))
-        if outcome == Outcome.SUPERSEDED:
-            self._superseded += 1
-            if self._now() - self._superseded_logged > 1.0:
-                self.get_logger().warn(f'{self._superseded} goals superseded by newer ones')
-                self._superseded, self._superseded_logged = 0, self._now()
-        elif level == Level.ERROR:
-            self.get_logger().error(text)
-        else:
-            self.get_logger().info(text)
-        if goal.finish is not None:
-            goal.finish(outcome, ending.message, ending.code, duration)
-
-    def _end_waiting(self, kind, key):
-        self._end(Goal(kind, key, None), Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
-
-    def _answer(self, key, msg):
-        """Publish the answer to goal ``key`` (kept, should the goal come again)."""
-        self.policy.answered(key, msg)
-        self.pub_status.publish(msg)
-
-    def _ready(self):
-        """None when a goal can be planned now, else why not (the arm's state or a controller unknown yet)."""
-        if self.measured() is None:
-            return 'no joint_states received: the planner does not know where the arm is'
-        if not self.controller.server_is_ready():
-            return 'no controller serves follow_joint_trajectory: the plan cannot be run'
-        if self.lifecycle.unanswered():
-            return 'the controller has not answered the last plan yet'
-        return None
-
-    def _serve_waiting(self):
-        """The goal that waits for the arm's state or a controller: planned once both are known,
-        refused after a few seconds (discovery may still be running when a node starts). Goals
-        the controller leaves unanswered end as aborted."""
-        why = self._ready() if self.policy.waiting is not None else None
-        ready, refused = self.policy.waited(why is None, self._now())
-        if ready is not None:
-            self._handle(ready)
-        if refused is not None:
-            self._end(refused, Ending(Outcome.REFUSED, f'{why} (waited {WAIT_LIMIT:g} s)'))
-        for flight, ending in self.lifecycle.overdue(self._now(), self._ros_now()):
-            if flight.handle is not None:
-                flight.handle.cancel_goal_async()
-            self._end(flight.goal, ending, flight.duration)
-
-    def _handle(self, goal):
-        """Plan a goal and send the plan to the controller; a goal that comes before the arm's
-        state or a controller is known waits (never blocking the executor)."""
-        if self._ready() is not None:
-            old = self.policy.wait(goal)
-            if old is not None:
-                self._end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
-            return
-        kind, policy = goal.kind, self.policy
-        measured = self.measured()
-        t0 = time.perf_counter()
-        try:
-            # The plan must end planning DELIVERY s before its start, else it is planned again further ahead.
-            delay = policy.delay(goal)
-            ref = self._reference()
-            for _ in range(4):
-                start = policy.start_state(self._ros_now() + delay, ref, measured[0])
-                plan = goal.plan(start.state, measured[1])
-                if policy.on_time(self._ros_now(), start):
-                    break
-                delay = 2.0 * delay + (time.perf_counter() - t0)
-        except (ValueError, Unreachable) as exc:
-            self._end(goal, Ending(Outcome.REFUSED, str(exc)))
-            return
-        planning_ms = (time.perf_counter() - t0) * 1e3
-        policy.planned(goal, planning_ms * 1e-3)
-        names = list(plan.joint_names or self.names)
-        period = self.planner.settings.sample_period
-        own = plan.samples(period)
-        points, stamp = policy.points(own, start, period, names)
-        try:
-            # Checked as the controller will check it: a plan it would refuse is never sent.
-            check_joint_limits(self.arm, *points, names=names)
-        except Unreachable as exc:
-            self._end(goal, Ending(Outcome.REFUSED, f'the plan breaks a limit (from {start.words()}: the arm\'s '
-                                                    f'motion cannot be carried on within it): {exc}'))
-            return
-        stamp_ns = int(round(stamp * 1e9))
-        trajectory = self.messages.joint_trajectory(stamp_ns, '', names, *points)
-        flight = self.lifecycle.sent(Flight(
-            goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],
-            self._now(), stamp_key(stamp_ns)))
-        future = self.controller.send_goal_async(FollowJointTrajectory.Goal(trajectory=trajectory),
-                                                 feedback_callback=partial(self._on_feedback, goal))
-        future.add_done_callback(partial(self._on_response, goal))
-        self.pub_traj.publish(trajectory)
-        policy.sent_plan(goal, plan.trajectory, start, names, flight.trajectory, self._ros_now(),
-                         self.get_parameter('reference_timeout').value)
-        summary = plan.summary(period)
-        flight.extra = dict(method=plan.method, duration=plan.duration, start=start.source,
-                            peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
-                            segments='; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments),
-                            planning_ms=planning_ms, attempt=goal.attempt + 1, **getattr(plan, 'extra', {}))
-        self._publish_tool_path(own[1])
-        self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
-
-    def _transition(self, goal, state, words):
-        flight = self.lifecycle.flights.get(goal.key)
-        extra = flight.extra if flight is not None else {}
-        again = ' again (the last plan reached the controller too late)' if goal.attempt else ''
-        self._answer(goal.key, status('picking_planner', Level.OK, f'{goal.kind} goal {state}{again}: {words}',
-                                      goal=goal.key, kind=goal.kind, state=state, **extra))
-
-    def _on_response(self, goal, future):
-        handle = future.result()
-        ending = self.lifecycle.response(goal.key, handle.accepted)
-        self._serve_waiting()                 # the goal that waited for this answer
-        if ending is not None:
-            self._end(goal, ending)
-            return
-        flight = self.lifecycle.flights.get(goal.key)
-        if flight is None:                    # ended meanwhile (overdue)
-            handle.cancel_goal_async()
-            return
-        flight.handle = handle
-        if flight.cancel:
-            handle.cancel_goal_async()
-        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s")
-        handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
-
-    def _on_feedback(self, goal, msg):
-        fb = msg.feedback
-        error = float(np.max(np.abs(fb.error.positions))) if len(fb.error.positions) else 0.0
-        if self.lifecycle.feedback(goal.key, error):
-            self._transition(goal, 'executing', 'the controller runs its plan')
-        flight = self.lifecycle.flights.get(goal.key)
-        if goal.feedback is not None and flight is not None:
-            phase, left = flight.phase(self._ros_now())
-            goal.feedback(phase, left, error)
-
-    def _on_result(self, goal, flight, future):
-        response = future.result()
-        words = {GoalStatus.STATUS_SUCCEEDED: 'succeeded', GoalStatus.STATUS_CANCELED: 'canceled'}.get(
-            response.status, 'aborted')
-        ending = self.lifecycle.result(goal.key, words, response.result.error_code, response.result.error_string)
-        if ending is None:
-            return                            # ended already (overdue)
-        if not ending.late:
-            self._end(goal, ending, flight.duration)
-            return
-        late = self.policy.late(flight.trajectory)
-        if late is None or not late.again:
-            self._end(goal, Ending(Outcome.REFUSED, f'its plan reached the controller too late {goal.attempt + 1} '
-                                                    f'times (a stalled or overloaded machine?): {ending.message}',
-                                   ending.code))
-            return
-        self.get_logger().warning(f'{goal.kind} goal {goal.key}: the controller got its plan too late '
-                                  f'({ending.message}); planning it again, further ahead')
-        self._handle(late.goal)
 
     def _publish_tool_path(self, q):
         """The tool poses of the plan (every other point) on ``planned_path``, for RViz or Foxglove."""
