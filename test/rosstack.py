@@ -36,6 +36,7 @@ RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 #: The planner's goal QoS (reliable, keep last 10 000; see picking_planner.node.BURST): a goal
 #: lost in transport during a flood must still be in our history when the planner asks again.
 BURST = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
+STATUSES = QoSProfile(depth=40_000, reliability=ReliabilityPolicy.RELIABLE)
 ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
               'wrist_3_joint']
 HOME = [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]
@@ -80,8 +81,9 @@ class Client(Node):
         self.lock = threading.Lock()
         self.states, self.commands, self.planner_status, self.controller_status = [], [], [], []
         self.create_subscription(JointState, 'joint_states', self._rec(self.states), RELIABLE)
+        # Deep enough for every status of a flood (about three per goal): the run's tally counts them.
         self._planner_sub = self.create_subscription(DiagnosticStatus, 'planner_status',
-                                                     self._rec(self.planner_status, self._tally), RELIABLE)
+                                                     self._rec(self.planner_status, self._tally), STATUSES)
         self._controller_sub = self.create_subscription(DiagnosticStatus, 'controller_status',
                                                         self._rec(self.controller_status), RELIABLE)
         self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', BURST)

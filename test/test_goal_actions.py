@@ -55,7 +55,8 @@ def test_a_pick_succeeds_through_its_phases(arm):
         assert any(phase in p for p in phases), [(f.phase, round(f.time_left, 2)) for f in feedback]
     lefts = [f.time_left for f in feedback if f.time_left > 0]
     assert lefts == sorted(lefts, reverse=True)
-    assert max(f.tracking_error for f in feedback) < 0.05
+    # The controller's tracking error, as it saw it: within its path tolerance (0.1 rad), or the pick had failed.
+    assert 0.0 < max(f.tracking_error for f in feedback) < 0.1
 
 
 def test_an_unreachable_goal_is_refused_with_the_reason(arm):
