@@ -94,7 +94,9 @@ class ControllerNode(Node):
         monitor_rate = get('action_monitor_rate', 20.0)
         if not monitor_rate > 0:
             raise ValueError(f'action_monitor_rate must be > 0 Hz, got {monitor_rate}')
-        self.create_timer(1.0 / monitor_rate, self._publish_feedback)
+        # Runs only while an action goal does: an idle controller's executor stays asleep.
+        self._feedback_timer = self.create_timer(1.0 / monitor_rate, self._publish_feedback)
+        self._feedback_timer.cancel()
         self.loop = PeriodicLoop(1.0 / self.rate, self._tick, name='control', logger=self.get_logger(),
                                  phase=loop_phase, priority=thread_priority)
         self.loop_stats = self.loop.stats
@@ -187,6 +189,8 @@ class ControllerNode(Node):
         key = bytes(handle.goal_id.uuid).hex()
         done = Future()
         self._goals[key] = handle, done
+        if self._feedback_timer.is_canceled():
+            self._feedback_timer.reset()
         request = handle.request
         try:
             if request.multi_dof_trajectory.joint_names or request.multi_dof_trajectory.points:
@@ -232,6 +236,8 @@ class ControllerNode(Node):
             now = self.now()
             state = self.core.feedback(now) if key is not None else None
         handle, _ = self._goals.get(key, (None, None))
+        if not self._goals:
+            self._feedback_timer.cancel()
         if state is None or handle is None:
             return
         (q, qd, qdd), q_meas, qd_meas = state
