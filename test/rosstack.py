@@ -121,8 +121,9 @@ class Client(Node):
 
     def _tally(self, msg):
         values = status_values(msg)
-        if values.get('goal') and values.get('state'):
-            GOALS[f'{self.get_namespace()} {values["goal"]}'] = values['state']
+        key = f'{self.get_namespace()} {values.get("goal")}'
+        if values.get('goal') and values.get('state') and GOALS.get(key) not in FINAL:   # a final state stays
+            GOALS[key] = values['state']
 
     def wait_for(self, predicate, timeout=20.0, what='condition'):
         end = time.monotonic() + timeout
