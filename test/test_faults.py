@@ -75,6 +75,7 @@ def test_a_planner_killed_mid_cycle_leaves_the_arm_held_and_a_restarted_one_carr
         # Its planner is gone: the pick's result is the controller's, not an action result.
         GOALS[f'{client.get_namespace()} {bytes(handle.goal_id.uuid).hex()}'] = KILLED
         stack.restart_planner()
+        stack.wait_ready(90.0)                          # a loaded machine starts a node slowly
         answer = reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]), timeout=60.0)
         assert status_values(answer)['state'] == 'accepted'
 

@@ -168,11 +168,12 @@ class Stack:
 
     def wait_ready(self, timeout=60.0):
         """Until the controller holds the arm (joint_commands flow) and the planner listens
-        (subscribes to its goal topics); RuntimeError if a node exits or time runs out.
+        (subscribes to its goal topics, serves its actions); RuntimeError if a node exits or time runs out.
 
         Asks the ROS graph and reads one reference from a context of its own, so that it
         works whether or not the caller has initialised rclpy."""
         import rclpy
+        from rclpy.action.graph import get_action_names_and_types
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import JointState
 
@@ -189,7 +190,8 @@ class Stack:
                 if got is not None:
                     newest.append(got[0])
                 holding = any(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 > since for m in newest[-1:])
-                listening = all(node.count_subscribers(t) > 0 for t in ('goal_pose', 'goal_path', 'pick_target'))
+                listening = all(node.count_subscribers(t) > 0 for t in ('goal_pose', 'goal_path', 'pick_target')) \
+                    and node.resolve_topic_name('pick') in dict(get_action_names_and_types(node))
                 if holding and listening:
                     return
                 dead = [n for n, up in self.alive().items() if not up]
