@@ -208,7 +208,7 @@ class GoalFlow:
         t0 = time.perf_counter()
         try:
             # The plan must end planning DELIVERY s before its start, else it is planned again further ahead.
-            delay = policy.delay(goal)
+            delay = policy.delay(goal) + 2.0 * self.lifecycle.latency
             ref = self._reference()
             for _ in range(4):
                 start = policy.start_state(self._ros_now() + delay, ref, measured[0])
@@ -260,7 +260,7 @@ class GoalFlow:
 
     def _on_response(self, goal, future):
         handle = future.result()
-        ending = self.lifecycle.response(goal.key, handle.accepted)
+        ending = self.lifecycle.response(goal.key, handle.accepted, self._now())
         self._serve_waiting()                 # the goal that waited for this answer
         if ending is not None:
             self._end(goal, ending)

@@ -91,6 +91,9 @@ class Lifecycle:
 
     def __init__(self):
         self.flights = {}
+        #: s from sending the newest answered plan to the controller's goal response: how long
+        #: delivery takes now (a loaded machine takes far longer), which a plan's start must allow.
+        self.latency = 0.0
 
     def sent(self, flight):
         """A plan went out: every goal before it that the controller still has is superseded by it."""
@@ -104,11 +107,12 @@ class Lifecycle:
         that a burst of goals never queues up plans at the controller (one in flight at a time)."""
         return any(f.state == 'sent' for f in self.flights.values())
 
-    def response(self, key, accepted):
-        """The controller's goal response; an Ending when it did not take the plan."""
+    def response(self, key, accepted, wall):
+        """The controller's goal response (at ``wall``); an Ending when it did not take the plan."""
         flight = self.flights.get(key)
         if flight is None:
             return None
+        self.latency = max(wall - flight.sent, 0.0)
         if not accepted:
             self.flights.pop(key)
             return Ending(Outcome.REFUSED, 'the controller did not accept the plan (its goal was rejected)')

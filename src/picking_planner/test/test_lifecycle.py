@@ -14,7 +14,7 @@ def test_a_goal_goes_accepted_executing_then_ends_with_the_controllers_result():
     life = Lifecycle()
     f = life.sent(flight('a'))
     assert f.phase(99.0) == ('sent', 3.0)
-    assert life.response('a', True) is None and f.state == 'accepted'
+    assert life.response('a', True, 10.2) is None and f.state == 'accepted'
     assert life.feedback('a', 0.01) is True and life.feedback('a', 0.02) is False
     assert f.phase(99.9)[0] == 'starting' and f.phase(100.5) == ('approach', 1.5) and f.phase(101.5) == ('grasp', 0.5)
     assert f.phase(102.5) == ('settling', 0.0) and f.tracking_error == 0.02
@@ -25,12 +25,12 @@ def test_a_goal_goes_accepted_executing_then_ends_with_the_controllers_result():
 def test_the_controllers_verdicts_map_to_outcomes():
     life = Lifecycle()
     life.sent(flight('r'))
-    assert life.response('r', False).outcome == Outcome.REFUSED
+    assert life.response('r', False, 10.1).outcome == Outcome.REFUSED
     life.sent(flight('i'))
-    life.response('i', True)
+    life.response('i', True, 10.1)
     assert life.result('i', 'aborted', INVALID_GOAL, 'point 0: beyond').outcome == Outcome.REFUSED
     life.sent(flight('p'))
-    life.response('p', True)
+    life.response('p', True, 10.1)
     life.feedback('p', 0.2)
     ending = life.result('p', 'aborted', PATH_TOLERANCE_VIOLATED, 'path tolerance violated')
     assert ending.outcome == Outcome.ABORTED and 'path tolerance' in ending.message and ending.code == -4
@@ -43,7 +43,7 @@ def test_the_controllers_verdicts_map_to_outcomes():
 def test_a_plan_preempted_by_our_newer_plan_is_superseded():
     life = Lifecycle()
     life.sent(flight('old'))
-    life.response('old', True)
+    life.response('old', True, 10.1)
     life.sent(flight('new'))
     assert life.result('old', 'aborted', INVALID_GOAL, 'preempted').outcome == Outcome.SUPERSEDED
     # Late because the newer one took over first: superseded too, not planned again.
@@ -69,5 +69,5 @@ def test_one_plan_at_a_time_waits_for_the_controllers_answer():
     assert not life.unanswered()
     life.sent(flight('a'))
     assert life.unanswered()
-    life.response('a', True)
-    assert not life.unanswered()
+    life.response('a', True, 10.4)
+    assert not life.unanswered() and abs(life.latency - 0.4) < 1e-9     # delivery takes this long now
