@@ -208,7 +208,8 @@ class GoalFlow:
         t0 = time.perf_counter()
         try:
             # The plan must end planning DELIVERY s before its start, else it is planned again further ahead.
-            delay = policy.delay(goal) + 2.0 * self.lifecycle.latency
+            # Planned again after coming too late: also allow for how long delivery takes now.
+            delay = policy.delay(goal) + (2.0 * self.lifecycle.latency if goal.attempt else 0.0)
             ref = self._reference()
             for _ in range(4):
                 start = policy.start_state(self._ros_now() + delay, ref, measured[0])
