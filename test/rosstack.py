@@ -225,6 +225,21 @@ class Client(Node):
         self.destroy_node()
 
 
+def send_goal(client, action, goal):
+    """Send an action goal as `ros2 action send_goal` does: its accepted handle and the feedback it gets."""
+    feedback = []
+    future = action.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(fb.feedback))
+    handle = client.wait_for(lambda: future.done() and future.result(), 10.0, 'the goal response')
+    assert handle.accepted
+    return handle, feedback
+
+
+def goal_result(client, handle, timeout=30.0):
+    """The goal's result response (``.status``, ``.result``)."""
+    future = handle.get_result_async()
+    return client.wait_for(lambda: future.done() and future.result(), timeout, 'the result')
+
+
 def make_pose(xyz, quat=DOWN):
     pose = Pose()
     pose.position.x, pose.position.y, pose.position.z = map(float, xyz)

@@ -13,7 +13,7 @@ from rclpy.action import ActionClient
 from rclpy.duration import Duration as Span
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from rosstack import ARM_JOINTS, HOME, largest_step, running_stack
+from rosstack import ARM_JOINTS, HOME, goal_result, largest_step, running_stack, send_goal as send
 
 Result = FollowJointTrajectory.Result
 
@@ -38,18 +38,8 @@ def goal(offsets, seconds, names=ARM_JOINTS, **extra):
     return g
 
 
-def send(client, action, g):
-    """The accepted goal handle and the feedback it gets."""
-    feedback = []
-    future = action.send_goal_async(g, feedback_callback=lambda fb: feedback.append(fb.feedback))
-    handle = client.wait_for(lambda: future.done() and future.result(), 10.0, 'the goal response')
-    assert handle.accepted
-    return handle, feedback
-
-
 def result(client, handle, timeout=20.0):
-    future = handle.get_result_async()
-    done = client.wait_for(lambda: future.done() and future.result(), timeout, 'the result')
+    done = goal_result(client, handle, timeout)
     return done.status, done.result
 
 

@@ -7,7 +7,7 @@ from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
 from rclpy.action import ActionClient
 
-from rosstack import make_pose, running_stack, settles_at
+from rosstack import goal_result as result, make_pose, running_stack, send_goal as send, settles_at
 
 APPLE = [0.55, 0.15, 0.35]
 
@@ -28,19 +28,6 @@ def stamped(xyz):
     msg.header.frame_id = 'base_link'
     msg.pose = make_pose(xyz)
     return msg
-
-
-def send(client, action, goal):
-    feedback = []
-    future = action.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(fb.feedback))
-    handle = client.wait_for(lambda: future.done() and future.result(), 10.0, 'the goal response')
-    assert handle.accepted
-    return handle, feedback
-
-
-def result(client, handle, timeout=30.0):
-    future = handle.get_result_async()
-    return client.wait_for(lambda: future.done() and future.result(), timeout, 'the result')
 
 
 @pytest.mark.load
