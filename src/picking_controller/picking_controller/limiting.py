@@ -36,12 +36,20 @@ class CommandLimits:
         out_qd = np.minimum(np.maximum(qd, -self.max_velocity), self.max_velocity)
         out_qdd = np.minimum(np.maximum(qdd, -self.max_acceleration), self.max_acceleration)
         self._last_command = (out_q, now)
-        if not ((out_q == q).all() and (out_qd == qd).all() and (out_qdd == qdd).all()):
+        if not ((out_q == q).all() and (out_qd == qd).all() and (out_qdd == qdd).all()) and self._beyond(
+                q, qd, qdd, out_q, out_qd, out_qdd):
             self.limited += 1
             if self._limited_version != self.version:
                 self._limited_version = self.version
                 events.append(self._limited_event(q, qd, qdd, out_q, out_qd, out_qdd, now))
         return (out_q, out_qd, out_qdd), events
+
+    @staticmethod
+    def _beyond(q, qd, qdd, out_q, out_qd, out_qdd, rel=1e-9):
+        """True when the limiting changed the reference by more than rounding: a plan at a limit
+        exactly may come out a few ulps beyond it; sent within the limits, that is not worth a warning."""
+        return any((np.abs(o - i) > rel * (1.0 + np.abs(i))).any()
+                   for i, o in ((q, out_q), (qd, out_qd), (qdd, out_qdd)))
 
     def _limited_event(self, q, qd, qdd, out_q, out_qd, out_qdd, now):
         """The WARN for a limited command: which joint, which limit, and the likely cause."""

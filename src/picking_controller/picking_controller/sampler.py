@@ -13,6 +13,11 @@ about): the points are joined by quintics whose velocities come from a
 shape-preserving (PCHIP) interpolant and whose accelerations are zero at the
 points, which is C2 and does not overshoot. ``smooth_positions=False`` gives
 the linear interpolation of ros2_controllers.
+
+With accelerations, two points less than two microseconds apart are one instant where the
+acceleration steps (:mod:`picking_planner.trajectory.waypoints`): the first point ends the segment
+before it, the second begins the one after it, so the planner's LSPB blends and cubic joins run
+exactly as planned instead of through a quintic that overshoots the step.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from picking_planner.trajectory import PiecewisePolynomial, concatenate, hermite_coeffs, quintic
+from picking_planner.trajectory.waypoints import step_pairs, through_waypoints
 
 
 def _block(values, name, shape):
@@ -95,7 +101,8 @@ def from_points(times, positions, velocities=None, accelerations=None, start=Non
     # Lead in from the current state to the first point with a quintic that meets
     # the first point's own velocity and acceleration: no jump at the splice.
     q0, v0, a0 = (np.broadcast_to(np.asarray(x, dtype=float), (q.shape[1],)) for x in start)
-    q1, v1, a1 = main.start_state()
+    # (The first point's own state: a step pair there starts the trajectory after the step.)
+    q1, v1, a1 = (q[0], v[0], a[0]) if a is not None else main.start_state()
     lead = quintic(q0, q1, t[0], v0, v1, a0, a1)
     return concatenate([lead, main])
 
@@ -125,6 +132,12 @@ def _through(t, q, v, a, smooth_positions):
         coeffs = np.zeros((1, 6, q.shape[1]))
         coeffs[0, 0] = q[0]
         return PiecewisePolynomial([t[0], t[0] + 1e-3], coeffs)
+    if a is not None:
+        # Velocities and accelerations: the convention of picking_planner's waypoints (one
+        # instant for two points a microsecond apart), quintics between the points otherwise.
+        if (~step_pairs(t)).sum() < 2:
+            return _through(t[:1], q[:1], None, None, False)
+        return through_waypoints(t, q, v, a)
     dt = np.diff(t)
     c = hermite_coeffs(q[:-1], None if v is None else v[:-1], None if a is None else a[:-1],
                        q[1:], None if v is None else v[1:], None if a is None else a[1:], dt[:, None])

@@ -167,6 +167,14 @@ class Splicing:
         if m and rel[-1] <= MIN_LEAD:
             raise LateTrajectory('the trajectory ends in the past (or within 20 ms)')
         self._check_limits(pos, vel, acc, times=rel)
+        if self._carries_on(now, rel, pos, vel, acc):
+            # It begins where the reference will be at its first point: the reference runs on
+            # until then and the trajectory takes over there, exactly as planned (no lead-in).
+            traj = from_points(rel - rel[0], pos, vel, acc)
+            self._check_spline(traj)
+            return Prepared(traj, now + float(rel[0]), version, Event('OK', 'trajectory accepted', {
+                'points': m, 'duration': float(traj.duration), 'starts_in': float(rel[0])}),
+                goal=goal, tolerances=tolerances)
         # Points due within the lead are dropped and replaced by a lead-in from the current
         # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
         # catches up over a longer one (as long as the plan expects the arm near its reference).
@@ -211,6 +219,19 @@ class Splicing:
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}),
             lead_in=float(rel[keep][0]), goal=goal, tolerances=tolerances)
+
+    def _carries_on(self, now, rel, pos, vel, acc):
+        """True when a trajectory's first point, due later than the shortest lead-in, is the state
+        (position, velocity and acceleration) the reference will have then, with no other
+        trajectory due to take over before it."""
+        if vel is None or acc is None or rel[0] <= MIN_LEAD:
+            return False
+        t = now + float(rel[0])
+        if self.next is not None and self.next.t_splice <= t:
+            return False
+        _, _, ref_qdd = self._commanded(*self._reference_at(t))
+        return (not self._starts_elsewhere(t, pos[0], vel[0])
+                and bool(np.abs(ref_qdd - acc[0]).max() <= 1e-6 * (1.0 + np.abs(acc[0]).max())))
 
     def _check_lead_in(self, traj, lead):
         """The lead-in from the reference to the first point must keep the acceleration limits too:

@@ -64,3 +64,18 @@ def test_bad_trajectories_are_refused(times, positions, match):
 def test_velocities_of_the_wrong_size_are_refused():
     with pytest.raises(ValueError, match='velocities'):
         from_points([0.0, 1.0], np.zeros((2, 2)), np.zeros((2, 3)))
+
+
+def test_two_points_a_microsecond_apart_are_one_instant_where_the_acceleration_steps():
+    """Constant acceleration 2, then -2 from t = 1 s (an LSPB's blend ending): exactly, no overshoot."""
+    q1, v1 = 1.0, 2.0
+    traj = from_points([0.0, 1.0, 1.0 + 1e-6, 2.0], [[0.0], [q1], [q1], [q1 + v1 - 1.0]],
+                       [[0.0], [v1], [v1], [0.0]], [[2.0], [2.0], [-2.0], [-2.0]])
+    t = np.linspace(0.0, 2.0, 2001)
+    q, qd, qdd = traj.sample(t)
+    assert qdd[t <= 1.0, 0] == pytest.approx(2.0) and qdd[t > 1.0, 0] == pytest.approx(-2.0)
+    assert q[:, 0] == pytest.approx(np.where(t <= 1.0, t * t, q1 + v1 * (t - 1) - (t - 1) ** 2))
+    # Points further apart are two instants: a quintic joins them as before.
+    apart = from_points([0.0, 1.0, 1.01, 2.0], [[0.0], [q1], [q1 + 0.02], [q1 + v1 - 1.0]],
+                        [[0.0], [v1], [v1], [0.0]], [[2.0], [2.0], [-2.0], [-2.0]])
+    assert len(apart.breaks) == 4

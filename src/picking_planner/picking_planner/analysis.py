@@ -6,6 +6,13 @@ import numpy as np
 
 from . import geometry
 
+#: How far the controller's commanded reference may be from the plan it runs, in position (rad),
+#: velocity (rad/s) and acceleration (rad/s^2), measured from the stamps of its joint_commands.
+#: The controller's core runs a plan within 1e-9 rad, 1e-7 rad/s and 1e-4 rad/s^2; on ROS time,
+#: seconds of the epoch as floats resolve a quarter of a microsecond, which at the joints' speeds
+#: and accelerations is the bound's size.
+REFERENCE_BOUND = (1e-5, 1e-4, 1e-2)
+
 
 def tracking_error(t_plan, q_plan, t_meas, q_meas):
     """Measured minus planned positions at the measurement times, (N, n); NaN outside the plan."""
@@ -44,7 +51,8 @@ def cartesian_deviation(kind, tool_start, tool_mid, tool_end, tool_measured):
 
 
 def peak_jerk(t, qdd):
-    """Largest |d qdd / dt| per joint from sampled accelerations (finite differences)."""
+    """Largest |d qdd / dt| per joint from sampled accelerations (finite differences; sample them
+    evenly: a plan's points put two a microsecond apart where the acceleration steps)."""
     dt = np.diff(t)
     keep = dt > 1e-9
     return np.max(np.abs(np.diff(qdd, axis=0)[keep] / dt[keep, None]), axis=0)
@@ -93,3 +101,15 @@ def corner_path(arm, plan, name, samples=2000):
     first, second = (_segment(plan, line), _segment(plan, move))[::1 if end else -1]
     t = np.linspace(first.start, second.start + second.duration, samples)
     return arm.fk(plan.trajectory.sample(t)[0][:, :arm.dof])[:, :3, 3]
+
+
+def reference_deviation(plan, t0, t_cmd, q_cmd, qd_cmd, qdd_cmd):
+    """Largest |commanded - planned| of position, velocity and acceleration over the commands
+    stamped ``t_cmd`` within the plan (a PiecewisePolynomial starting at clock time ``t0``), each
+    per joint, and how many commands that was; the commands' columns are the plan's joints."""
+    inside = (t_cmd >= t0) & (t_cmd <= t0 + plan.duration)
+    if not inside.any():
+        return None
+    want = plan.sample(t_cmd[inside] - t0)
+    return (*(np.abs(got[inside] - w).max(axis=0) for got, w in zip((q_cmd, qd_cmd, qdd_cmd), want)),
+            int(inside.sum()))

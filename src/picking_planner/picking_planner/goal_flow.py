@@ -28,6 +28,7 @@ from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
 from .pick_cycle import PickCycle
+from .trajectory import waypoints
 
 RESULTS = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}
 
@@ -224,7 +225,7 @@ class GoalFlow:
         policy.planned(goal, planning_ms * 1e-3)
         names = list(plan.joint_names or self.names)
         period = self.planner.settings.sample_period
-        own = plan.samples(period)
+        own = waypoints(plan.trajectory, period, before=start.state[2])
         points, stamp = policy.points(own, start, period, names)
         try:
             # Checked as the controller will check it: a plan it would refuse is never sent.

@@ -7,6 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .trajectory.waypoints import one_sided, waypoints
+
 
 class SentPlan(NamedTuple):
     """A plan as sent: its trajectory, its start on the controller's clock, its joint names,
@@ -62,8 +64,9 @@ def carry_start(sent, seen, t_start):
 
 
 def carried_points(sent, t_from, t_until, period, names):
-    """The motion of the plans ``sent`` from ``t_from`` to just before ``t_until``, every
-    ``period`` s: ``(t - t_from, q, qd, qdd)`` for the joints ``names``, or None when a
+    """The motion of the plans ``sent`` from ``t_from`` to just before ``t_until``, as the points
+    :func:`~picking_planner.trajectory.waypoints` makes of each (every ``period`` s, its breaks and
+    acceleration steps): ``(t - t_from, q, qd, qdd)`` for the joints ``names``, or None when a
     plan running then lacks one of them (or there is less than half a period to carry).
 
     A plan is carried on from the state of the plan sent before it at its start time.
@@ -74,19 +77,25 @@ def carried_points(sent, t_from, t_until, period, names):
     is not yet seen to run: taken or not, the controller then runs the same motion.
     """
     # (The last point at least half a period before ``t_until``: no sliver of a segment.)
-    times = t_from + np.arange(max(int(np.ceil((t_until - t_from) / period - 0.5)), 0)) * period
-    rows = []
-    for t in times:
-        traj, t0, plan_names, _ = plan_active(sent, t)
+    if t_until - t_from < period / 2:
+        return None
+    starts = sorted({p.start for p in sent if t_from < p.start < t_until} | {t_from})
+    parts, before = [], None
+    for lo, hi in zip(starts, starts[1:] + [t_until]):
+        traj, t0, plan_names, _ = plan_active(sent, lo)
         try:
             cols = [plan_names.index(n) for n in names]
         except ValueError:
             return None
-        rows.append([x[cols] for x in traj.state_at(t - t0)])
-    if not rows:
+        if before is not None:           # the acceleration the plan before ended with, for the joints carried
+            before, given = one_sided(traj, np.array([lo - t0]), after=True)[2][0], before
+            before[cols] = given
+        t, q, qd, qdd = waypoints(traj, period, lo - t0, hi - t0, before=before, end=False)
+        parts.append((t + (lo - t_from), q[:, cols], qd[:, cols], qdd[:, cols]))
+        before = traj.state_at(hi - t0)[2][cols]
+    if not parts:
         return None
-    q, qd, qdd = (np.array(x) for x in zip(*rows))
-    return times - t_from, q, qd, qdd
+    return tuple(np.concatenate(x) for x in zip(*parts))
 
 
 def predict_reference(q, qd, qdd, dt):

@@ -121,3 +121,29 @@ def test_a_flood_of_goals_on_a_predicted_reference_does_not_run_away(accel):
         q, qd, qdd = lead_in.state_at(0.001)
     assert abs(qd[0]) <= abs(accel) * 0.1
     assert abs(qdd[0]) < 1e-6 * abs(accel)
+
+
+def test_carried_points_keep_every_break_and_acceleration_step_of_the_plans_they_carry():
+    """LSPB plans (their acceleration steps at the blends): between two carried points no break of the
+    plan running then, and where the acceleration steps, two points STEP apart, before and after it."""
+    a = trajectory.lspb(np.array([0.0, 0.0]), np.array([1.0, -1.0]), 1.0, np.array([8.0, 8.0]))
+    q, qd, qdd = a.state_at(0.3)
+    b = trajectory.concatenate([trajectory.quintic(q, q + 0.1, 0.2, v0=qd, a0=qdd),
+                                trajectory.lspb(q + 0.1, np.array([0.2, 0.2]), 0.6, np.array([8.0, 8.0]))])
+    sent = [SentPlan(a, 10.0, ARM), SentPlan(b, 10.3, ARM)]
+    t, q, qd, qdd = carried_points(sent, 10.0, 10.9, 0.01, ARM)
+    steps = trajectory.step_pairs(t)
+    starts = t[np.flatnonzero(~steps)] + 10.0
+    for lo, hi in zip(starts[:-1], starts[1:]):
+        plan = plan_active(sent, lo)
+        breaks = plan.trajectory.breaks + plan.start
+        assert not ((breaks > lo + 1e-9) & (breaks < hi - 1e-9)).any(), (lo, hi)
+    # Each step pair: the acceleration before the step, then after it, the same position.
+    first = np.flatnonzero(steps) - 1
+    assert first.size >= 4
+    assert q[first] == pytest.approx(q[first + 1], abs=1e-12)
+    for k in first:
+        plan = plan_active(sent, 10.0 + t[k] + 1e-7)
+        local = 10.0 + t[k] - plan.start
+        assert qdd[k] == pytest.approx(plan.trajectory.sample([local - 1e-9])[2][0], abs=1e-5)
+        assert qdd[k + 1] == pytest.approx(plan.trajectory.sample([local + 1e-9])[2][0], abs=1e-5)

@@ -9,10 +9,12 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from ..analysis import cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners, tracking_error
+from ..analysis import (REFERENCE_BOUND, cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners, reference_deviation,
+                        tracking_error)
 from ..kinematics import ArmModel, pose_matrix
 from ..pick_cycle import PickCycle, PickSettings
 from ..planning import Planner, PlannerSettings
+from ..trajectory import through_waypoints
 
 
 def log(msg):
@@ -44,6 +46,24 @@ def planned_arrays(msg, t_received):
 def measured_arrays(messages, names):
     rows = [(_stamp(m.header.stamp), [m.position[list(m.name).index(n)] for n in names]) for _, m in messages]
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+
+
+def _since(s, origin):
+    """Seconds from stamp ``origin`` to stamp ``s``, to the nanosecond (as a float of the epoch, a
+    stamp is good to a quarter of a microsecond only: too coarse for a plan's acceleration steps)."""
+    return (s.sec - origin.sec) + (s.nanosec - origin.nanosec) * 1e-9
+
+
+def commanded_arrays(messages, names, origin):
+    """Times since stamp ``origin`` and q, qd, qdd of ``joint_commands`` (the acceleration rides in
+    ``effort``) for ``names``."""
+    t, q, qd, qdd = [], [], [], []
+    for _, m in messages:
+        cols = [list(m.name).index(n) for n in names]
+        t.append(_since(m.header.stamp, origin))
+        for out, field in ((q, m.position), (qd, m.velocity), (qdd, m.effort)):
+            out.append([field[c] for c in cols])
+    return np.array(t), np.array(q), np.array(qd), np.array(qdd)
 
 
 def _table(header, rows):
@@ -113,11 +133,26 @@ def analyse_and_report(rec, events, config, out, quick=False):
     n_arm = arm.dof
     lower, upper, vmax, amax = arm.all_limits
     idx = [list(arm.all_joint_names).index(n) for n in names]
-    peak_v, peak_a = np.abs(qd).max(axis=0), np.abs(qdd).max(axis=0)
-    jerk = peak_jerk(t - t[0], qdd)
+    # The plan as the controller runs it (quintics between the points, acceleration steps kept),
+    # every millisecond, for its peaks and its jerk.
+    plan = through_waypoints([_since(p.time_from_start, pick_msg.points[0].time_from_start) for p in pick_msg.points],
+                             q, qd, qdd)
+    t_ms = np.arange(0.0, plan.duration, 1e-3)
+    _, qd_ms, qdd_ms = plan.sample(t_ms)
+    peak_v = np.maximum(np.abs(qd).max(axis=0), np.abs(qd_ms).max(axis=0))
+    peak_a = np.maximum(np.abs(qdd).max(axis=0), np.abs(qdd_ms).max(axis=0))
+    jerk = peak_jerk(t_ms, qdd_ms)
+    # What the controller commanded against that plan.
+    t_cmd, *cmd = commanded_arrays(rec.messages('joint_commands'), names, pick_msg.header.stamp)
+    deviation = reference_deviation(plan, _stamp(pick_msg.points[0].time_from_start), t_cmd, *cmd)
+    limited = [m.message for _, m in rec.messages('controller_status') if 'command limited' in m.message]
     checks = {'velocity within limits': bool(np.all(peak_v <= vmax[idx] * (1 + 1e-6))),
               'acceleration within limits': bool(np.all(peak_a <= amax[idx] * (1 + 1e-6))),
-              'positions within limits': bool(np.all((q >= lower[idx] - 1e-9) & (q <= upper[idx] + 1e-9)))}
+              'positions within limits': bool(np.all((q >= lower[idx] - 1e-9) & (q <= upper[idx] + 1e-9))),
+              'the controller commanded the plan (no "command limited")': not limited,
+              'commanded acceleration within limits': bool(np.all(np.abs(cmd[2]) <= amax[idx] * (1 + 1e-6))),
+              'the commanded reference within the bound of the plan': deviation is not None and all(
+                  d.max() <= b for d, b in zip(deviation, REFERENCE_BOUND))}
 
     # Cartesian segments: requested line/arc from the plan's own tool points; the tool by FK of joint_states.
     cart_rows = []
@@ -152,6 +187,12 @@ def analyse_and_report(rec, events, config, out, quick=False):
                       f'{final[i]:.2e}') for i, n in enumerate(names)]),
              '', 'Units: rad, rad/s, rad/s², rad/s³ (the gripper: m, m/s, m/s², m/s³). Tracking error: measured '
              '`joint_states` minus the planned trajectory at the measurement stamp.', '',
+             *([f'Largest deviation of the commanded reference (`joint_commands`, {deviation[3]} ticks recorded) '
+                f'from the plan over its {plan.duration:.2f} s: {deviation[0].max():.1e} rad, {deviation[1].max():.1e} '
+                f'rad/s, {deviation[2].max():.1e} rad/s² (bound: {REFERENCE_BOUND[0]:g} rad, {REFERENCE_BOUND[1]:g} '
+                f'rad/s, {REFERENCE_BOUND[2]:g} rad/s², docs/controller.md)'
+                + (f'; the controller said: {limited[0]}' if limited else '.'), '']
+               if deviation is not None else []),
              '## Cartesian segments: the tool against the requested line or arc', '',
              _table(['segment', 'kind', 'length [mm]', 'plan deviation [mm]', 'measured deviation [mm]'], cart_rows),
              '', '## Checks', '', *[f'- {k}: {"yes" if v else "NO"}' for k, v in checks.items()]]
@@ -216,6 +257,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
     (out / 'report.json').write_text(json.dumps({
         'cycle_time_s': cycle, 'segments': segments, 'joints': names,
         'peak_velocity': peak_v.tolist(), 'peak_acceleration': peak_a.tolist(), 'largest_jerk': jerk.tolist(),
+        'reference_deviation': None if deviation is None else [d.tolist() for d in deviation[:3]],
         'max_tracking_error': np.nanmax(np.abs(err), axis=0).tolist(), 'final_error': final.tolist(),
         'cartesian': cart_rows, 'checks': checks, 'files': [str(f) for f in files]}, indent=2))
     print(report)

@@ -14,10 +14,11 @@ from .piecewise import PiecewisePolynomial, concatenate, hold, stack, use_compil
 from .polynomial import brake, cubic, held_within_limits, hermite_coeffs, quintic
 from .optimal import time_optimal, time_optimal_stop
 from .via import quintic_via
+from .waypoints import STEP, step_pairs, through_waypoints, waypoints
 
 __all__ = [
     'PiecewisePolynomial', 'Lspb', 'ViaLspb',
     'cubic', 'quintic', 'lspb', 'min_lspb_accel', 'via_lspb', 'via_lspb_timing', 'quintic_via',
     'concatenate', 'hold', 'stack', 'hermite_coeffs', 'brake', 'held_within_limits', 'time_optimal',
-    'time_optimal_stop', 'use_compiled_kernels',
+    'time_optimal_stop', 'use_compiled_kernels', 'waypoints', 'through_waypoints', 'step_pairs', 'STEP',
 ]
