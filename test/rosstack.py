@@ -211,11 +211,15 @@ class Client(Node):
 
     def set_planner_parameter(self, name, value, timeout=10.0):
         """Set one of the planner's parameters through its parameter service (as picking-goal does)."""
+        self.set_planner_parameters({name: value}, timeout)
+
+    def set_planner_parameters(self, values, timeout=10.0):
+        """Set several of the planner's parameters at once (one request: they are checked together)."""
         client = AsyncParameterClient(self, 'picking_planner')
         assert client.wait_for_services(timeout_sec=timeout), 'the planner offers no parameter service'
-        future = client.set_parameters([Parameter(name, value=value)])
-        self.wait_for(future.done, timeout, f'the planner to set {name}')
-        assert future.result().results[0].successful, future.result().results[0].reason
+        future = client.set_parameters_atomically([Parameter(n, value=v) for n, v in values.items()])
+        self.wait_for(future.done, timeout, f'the planner to set {", ".join(values)}')
+        assert future.result().result.successful, future.result().result.reason
 
     def close(self):
         self._closing.set()

@@ -173,7 +173,7 @@ class Splicing:
             traj = from_points(rel - rel[0], pos, vel, acc)
             self._check_spline(traj)
             return Prepared(traj, now + float(rel[0]), version, Event('OK', 'trajectory accepted', {
-                'points': m, 'duration': float(traj.duration), 'starts_in': float(rel[0])}),
+                'points': m, 'duration': float(traj.duration), 'starts_in': float(rel[0]), 'caught_up': 0.0}),
                 goal=goal, tolerances=tolerances)
         # Points due within the lead are dropped and replaced by a lead-in from the current
         # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
@@ -200,7 +200,7 @@ class Splicing:
                                    None if acc is None else acc[keep], start=ref)
                 checking = True
                 self._check_spline(traj)
-                self._check_lead_in(traj, float(rel[keep][0]))
+                self._check_lead_in(traj, float(rel[keep][0]), ref)
                 break
             except ValueError as exc:
                 traj = None
@@ -217,7 +217,9 @@ class Splicing:
         if traj is None:
             raise error
         return Prepared(traj, now, version, Event('OK', 'trajectory accepted', {
-            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0))}),
+            'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0)),
+            # How much of the trajectory a catch-up lead-in replaced (it came late), s.
+            'caught_up': float(times[keep][0] - times[0])}),
             lead_in=float(rel[keep][0]), goal=goal, tolerances=tolerances)
 
     def _carries_on(self, now, rel, pos, vel, acc):
@@ -233,7 +235,7 @@ class Splicing:
         return (not self._starts_elsewhere(t, pos[0], vel[0])
                 and bool(np.abs(ref_qdd - acc[0]).max() <= 1e-6 * (1.0 + np.abs(acc[0]).max())))
 
-    def _check_lead_in(self, traj, lead):
+    def _check_lead_in(self, traj, lead, ref):
         """The lead-in from the reference to the first point must keep the acceleration limits too:
         a lead-in that cannot is refused (a late one is tried longer, then refused as late), never
         limited after the fact."""
@@ -242,9 +244,12 @@ class Splicing:
         over = np.abs(qdd) > self.max_acceleration * (1 + 1e-3) + 1e-6
         if over.any():
             i, j = np.argwhere(over)[0]
+            first = traj.state_at(traj.start_time + lead)
             raise ValueError(f'the {lead:.3f} s lead-in from the current reference to the first point needs '
                              f'{self.names[j]} acceleration {qdd[i, j]:.4g}, beyond its limit '
-                             f'{self.max_acceleration[j]:.4g}: give the first point a later time_from_start')
+                             f'{self.max_acceleration[j]:.4g} (from {ref[0][j]:.4f} rad at {ref[1][j]:.4g} rad/s, '
+                             f'{ref[2][j]:.4g} rad/s² to {first[0][j]:.4f} rad at {first[1][j]:.4g} rad/s, '
+                             f'{first[2][j]:.4g} rad/s²): give the first point a later time_from_start')
 
     def _starts_elsewhere(self, t, q, qd, tol=1e-6):
         """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""

@@ -69,8 +69,9 @@ def test_velocities_of_the_wrong_size_are_refused():
 def test_two_points_a_microsecond_apart_are_one_instant_where_the_acceleration_steps():
     """Constant acceleration 2, then -2 from t = 1 s (an LSPB's blend ending): exactly, no overshoot."""
     q1, v1 = 1.0, 2.0
-    traj = from_points([0.0, 1.0, 1.0 + 1e-6, 2.0], [[0.0], [q1], [q1], [q1 + v1 - 1.0]],
-                       [[0.0], [v1], [v1], [0.0]], [[2.0], [2.0], [-2.0], [-2.0]])
+    e = 1e-6                                   # the second point: the state a microsecond after the step
+    traj = from_points([0.0, 1.0, 1.0 + e, 2.0], [[0.0], [q1], [q1 + v1 * e - e * e], [q1 + v1 - 1.0]],
+                       [[0.0], [v1], [v1 - 2 * e], [0.0]], [[2.0], [2.0], [-2.0], [-2.0]])
     t = np.linspace(0.0, 2.0, 2001)
     q, qd, qdd = traj.sample(t)
     assert qdd[t <= 1.0, 0] == pytest.approx(2.0) and qdd[t > 1.0, 0] == pytest.approx(-2.0)

@@ -234,7 +234,7 @@ class GoalFlow:
             self._end(goal, Ending(Outcome.REFUSED, f'the plan breaks a limit (from {start.words()}: the arm\'s '
                                                     f'motion cannot be carried on within it): {exc}'))
             return
-        stamp_ns = int(round(stamp * 1e9))
+        stamp_ns = self._stamp_ns(stamp)
         trajectory = self.messages.joint_trajectory(stamp_ns, '', names, *points)
         flight = self.lifecycle.sent(Flight(
             goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],

@@ -51,6 +51,11 @@ PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'g
         'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy',
         'place_yaw_free', 'blend', 'blend_radius')
 
+#: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
+#: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
+NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
+                     approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02)
+
 
 class PlannerNode(GoalFlow, Node):
     """ROS interface of the planner: its parameters, the arm's state, and (in :class:`GoalFlow`) its goals."""
@@ -62,10 +67,10 @@ class PlannerNode(GoalFlow, Node):
         self.declare_parameter('reference_timeout', 0.1)
         self.declare_parameter('start_delay', 0.1)
         for name in SETTINGS:
-            self.declare_parameter(name, getattr(defaults, name))
+            self.declare_parameter(name, NODE_DEFAULTS.get(name, getattr(defaults, name)))
         pick = PickSettings()
         for name in PICK:
-            self.declare_parameter(name, getattr(pick, name))
+            self.declare_parameter(name, NODE_DEFAULTS.get(name, getattr(pick, name)))
         self.arm = ArmModel.from_urdf(self.get_parameter('urdf_path').value or default_urdf())
         # The compiled IK and forward kinematics load now (a fraction of a second from
         # numba's cache), not on the first goal.
@@ -77,6 +82,9 @@ class PlannerNode(GoalFlow, Node):
         self.pick = PickSettings(**{n: self.get_parameter(n).value for n in PICK}).validate(self.arm)
         self.add_on_set_parameters_callback(self._on_parameters)
 
+        # Times on the ROS clock count from here: as float seconds of the epoch they would resolve a
+        # quarter of a microsecond, too coarse for the microsecond between a plan's step points.
+        self._origin_ns = self.get_clock().now().nanoseconds - 1_000_000_000
         self.policy = GoalPolicy(self.arm, self.get_parameter('start_delay').value)
         self.create_timer(0.1, self._serve_waiting)
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
@@ -143,8 +151,12 @@ class PlannerNode(GoalFlow, Node):
         return time.monotonic()
 
     def _ros_now(self):
-        """The controller's clock (the ROS clock), s."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        """The controller's clock (the ROS clock), s since :attr:`_origin_ns`."""
+        return (self.get_clock().now().nanoseconds - self._origin_ns) * 1e-9
+
+    def _stamp_ns(self, t):
+        """A time of :meth:`_ros_now` as a stamp, ns."""
+        return self._origin_ns + int(round(t * 1e9))
 
     def measured(self):
         """The newest valid joint_states: ``(q, gripper opening or None)``, or None before any."""
@@ -168,7 +180,7 @@ class PlannerNode(GoalFlow, Node):
         msg = self.commands.take()
         if msg is None:
             return None
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec - self._origin_ns) * 1e-9
         if self._ros_now() - stamp > self.get_parameter('reference_timeout').value:
             return None                      # no controller is publishing: start from the measurement
         try:

@@ -322,3 +322,11 @@ def test_a_start_state_is_checked_and_a_single_number_holds_for_every_joint(arm,
     with pytest.raises(ValueError, match='start velocity'):          # before the knot points are checked
         cycle = PickCycle(planner, PickSettings().validate(arm))
         cycle.plan((HOME, [0.0] * 7, Z), pose_matrix([0.7, 0.15, 0.65], DOWN))
+
+
+def test_a_quintic_pose_goal_with_limit_jerk_takes_long_enough_to_keep_the_jerk_limits(arm):
+    """Not refused ("jerk limit broken"): its duration allows for the jerk at its ends, 60 h / T^3."""
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='quintic', path_method='optimal', limit_jerk=True))
+    plan = planner.plan_pose((HOME, Z, Z), pose_matrix([0.6, 0.1, 0.4], DOWN))
+    t = np.linspace(0.0, plan.duration, 2000)
+    assert planner._jerk_ratio(plan.trajectory, t) <= 1.0

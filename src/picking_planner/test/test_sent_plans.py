@@ -138,10 +138,10 @@ def test_carried_points_keep_every_break_and_acceleration_step_of_the_plans_they
         plan = plan_active(sent, lo)
         breaks = plan.trajectory.breaks + plan.start
         assert not ((breaks > lo + 1e-9) & (breaks < hi - 1e-9)).any(), (lo, hi)
-    # Each step pair: the acceleration before the step, then after it, the same position.
+    # Each step pair: the acceleration before the step, then the state a microsecond after it.
     first = np.flatnonzero(steps) - 1
     assert first.size >= 4
-    assert q[first] == pytest.approx(q[first + 1], abs=1e-12)
+    assert q[first + 1] == pytest.approx(q[first] + qd[first] * trajectory.STEP, abs=1e-11)
     for k in first:
         plan = plan_active(sent, 10.0 + t[k] + 1e-7)
         local = 10.0 + t[k] - plan.start

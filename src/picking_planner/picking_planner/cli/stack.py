@@ -229,7 +229,7 @@ def overrides(items):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog='picking-stack', description=__doc__.split('\n\n')[0],
                                      epilog='Examples:\n  picking-stack\n  picking-stack --ns /arm2 --domain 7\n'
-                                            '  picking-stack -p picking_controller:update_rate:=250.0 --for 10',
+                                            '  picking-stack -p picking_controller:update_rate:=250.0 --for 10\n  picking-stack --paper',
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--ns', default='/', help='namespace of the arm (default: %(default)s)')
     parser.add_argument('--domain', type=int, help='ROS_DOMAIN_ID (default: the environment\'s, else 0)')
@@ -240,6 +240,9 @@ def main(argv=None):
     parser.add_argument('--for', dest='duration', type=float, metavar='S',
                         help='stop after S seconds up (default: run until Ctrl-C)')
     parser.add_argument('--timeout', type=float, default=60.0, help='s to wait for the arm to come up')
+    parser.add_argument('--paper', action='store_true',
+                        help="the paper's interpolation methods (config/paper_methods.yaml) instead of the shipped "
+                             'jerk-limited, blended ones')
     args = parser.parse_args(argv)
     try:
         extra = overrides(args.params)
@@ -254,7 +257,8 @@ def main(argv=None):
     stopping = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stopping.set())
-    stack = Stack(args.ns, args.log_dir, args=extra, echo=args.show_logs)
+    files = {'picking-planner': NODES['picking-planner'][1] + ('paper_methods.yaml',)} if args.paper else None
+    stack = Stack(args.ns, args.log_dir, args=extra, files=files, echo=args.show_logs)
     for name, p in stack.nodes.items():
         print(f'picking-stack: started {name} (pid {p.pid})', flush=True)
     code = 0

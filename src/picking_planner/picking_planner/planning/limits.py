@@ -93,6 +93,9 @@ class Limits:
         else:
             kv, ka = _PEAKS[method]
             t = np.maximum(kv * h / v, np.sqrt(ka * h / a))
+            if self.settings.limit_jerk and method == 'quintic':
+                # A quintic from rest to rest jerks hardest at its ends: 60 h / T^3.
+                t = np.maximum(t, np.cbrt(60.0 * h / self._jmax))
         return np.maximum(t.max(axis=1), self.settings.sample_period)
 
     def _check(self, traj, label):

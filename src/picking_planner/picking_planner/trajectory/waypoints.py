@@ -8,19 +8,18 @@ that quintic overshoots the plan's acceleration by up to 38 % of the step: the c
 runs something other than the plan that was checked. :func:`waypoints` places a point at every
 break of the plan, so that each pair of neighbouring points lies within one of the plan's
 polynomials (degree <= 5) and the quintic between them *is* that polynomial; and where the
-acceleration steps, two points :data:`STEP` apart: the first with the acceleration before the
-step, the second with the state just after it. :func:`through_waypoints` is the other side of
-that convention, the controller's: such a pair is one instant, the first point ends the segment
-before it and the second begins the one after it.
-
-Other controllers read the pair as a segment a microsecond long: they run the same motion.
+acceleration steps, two points :data:`STEP` apart: the first with the state at the step and the
+acceleration before it, the second with the state :data:`STEP` after it. A controller that joins
+every pair of points with a quintic runs the plan exactly but for that microsecond;
+:func:`through_waypoints`, the controller's reading, runs the segment after the step from the step
+itself, so exactly throughout.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .piecewise import PiecewisePolynomial
+from .piecewise import PiecewisePolynomial, taylor_shift
 from .polynomial import hermite_coeffs
 
 #: Time between the two points of an acceleration step, s.
@@ -29,12 +28,14 @@ STEP = 1e-6
 _MERGE = 1e-5
 
 
-def one_sided(traj, t, after):
+def one_sided(traj, t, after, at=None):
     """``(q, qd, qdd)`` of the PiecewisePolynomial ``traj`` at times ``t`` (on its own clock, within
-    it), each (N, n): at a break, the limit from the segment ``after`` it (True) or before it."""
+    it), each (N, n): at a break, the limit from the segment ``after`` it (True) or before it. With
+    ``at``, the segments are those of the times ``at`` and evaluated at ``t`` (a hair beside them)."""
     b = traj.breaks
-    k = np.clip(np.searchsorted(b, t, side='right' if after else 'left') - 1, 0, len(b) - 2)
-    tau = (np.asarray(t, float) - b[k])[:, None]
+    t = np.asarray(t, float)
+    k = np.clip(np.searchsorted(b, t if at is None else at, side='right' if after else 'left') - 1, 0, len(b) - 2)
+    tau = (t - b[k])[:, None]
     c = traj.coeffs[k]                                                   # (N, 6, n)
     q = c[:, 0] + tau * (c[:, 1] + tau * (c[:, 2] + tau * (c[:, 3] + tau * (c[:, 4] + tau * c[:, 5]))))
     qd = c[:, 1] + tau * (2 * c[:, 2] + tau * (3 * c[:, 3] + tau * (4 * c[:, 4] + tau * 5 * c[:, 5])))
@@ -44,7 +45,8 @@ def one_sided(traj, t, after):
 
 def waypoints(traj, period, t_from=None, t_until=None, before=None, end=True):
     """Points ``(t, q, qd, qdd)`` of ``traj`` from ``t_from`` to ``t_until`` (its clock; default its
-    start and end), ``t`` counted from ``t_from``.
+    start and end), ``t`` counted from ``t_from`` in whole nanoseconds (a message's resolution: the
+    states are those of the times sent).
 
     Every ``period`` s, at every break of ``traj`` between, and where the acceleration steps two
     points :data:`STEP` apart (see the module). ``before``: the acceleration just before ``t_from``
@@ -66,23 +68,27 @@ def waypoints(traj, period, t_from=None, t_until=None, before=None, end=True):
     t = np.union1d(grid[keep], inner)
     if end and hi > lo:
         t = np.append(t[t < hi - _MERGE], hi)
-    q, qd, qdd = one_sided(traj, t, after=True)
-    left = one_sided(traj, t, after=False)[2]
+    # The times as sent, and each one's segments before and after it (at a break, two).
+    sent = np.round((t - lo) * 1e9) * 1e-9
+    q, qd, qdd = one_sided(traj, lo + sent, after=True, at=t)
+    left = one_sided(traj, lo + sent, after=False, at=t)[2]
     left[0] = qdd[0]
     if before is not None:
         before = np.asarray(before, float).ravel()[:traj.n_joints]
         left[0, :before.size] = before
     if end:
-        q[-1], qd[-1], qdd[-1] = (x[-1] for x in one_sided(traj, t[-1:], after=False))
+        q[-1], qd[-1], qdd[-1] = (x[-1] for x in one_sided(traj, lo + sent[-1:], after=False, at=t[-1:]))
         left[-1] = qdd[-1]
     steps = np.flatnonzero(np.abs(left - qdd).max(axis=1) > 1e-9 * (1.0 + np.abs(qdd).max()))
-    # Each step: a point with the acceleration before it, then the state after it STEP later.
+    # Each step: a point with the acceleration before it, then the state STEP after it.
     at = np.sort(np.concatenate((np.arange(t.size), steps)))
     second = np.concatenate(([False], at[1:] == at[:-1]))
     first = np.concatenate((second[1:], [False]))
-    acc = qdd[at]
-    acc[first] = left[at[first]]
-    return t[at] + np.where(second, STEP, 0.0) - lo, q[at], qd[at], acc
+    times = sent[at] + np.where(second, STEP, 0.0)
+    q, qd, qdd = q[at], qd[at], qdd[at]
+    qdd[first] = left[at[first]]
+    q[second], qd[second], qdd[second] = one_sided(traj, lo + times[second], after=True, at=t[at[second]])
+    return times, q, qd, qdd
 
 
 def step_pairs(times):
@@ -95,15 +101,17 @@ def step_pairs(times):
 
 def through_waypoints(t, q, qd, qdd):
     """The trajectory through timed points ``(t, q, qd, qdd)`` (each (m, n) but ``t``, at least two
-    points): between neighbours the quintic that meets both, and a pair of points less than two
-    :data:`STEP` apart one instant where the acceleration steps (see the module). Returns a
-    :class:`PiecewisePolynomial` from ``t[0]``; the inverse of :func:`waypoints`."""
+    points): between neighbours the quintic that meets both; two points less than two :data:`STEP`
+    apart are an acceleration step at the first, where the segment after the second begins (see the
+    module). Returns a :class:`PiecewisePolynomial` from ``t[0]``; the inverse of :func:`waypoints`."""
     t = np.asarray(t, float)
+    q, qd, qdd = (np.asarray(x, float) for x in (q, qd, qdd))
     second = step_pairs(t)
-    ends = np.flatnonzero(~second)                     # the points that start or end segments
-    if ends.size < 2:
+    if (~second).sum() < 2:
         raise ValueError('the points span no time (a single instant)')
-    begins = ends[:-1] + second[ends[:-1] + 1]         # after a step: its second point
-    c = hermite_coeffs(q[begins], qd[begins], qdd[begins], q[ends[1:]], qd[ends[1:]], qdd[ends[1:]],
-                       np.diff(t[ends])[:, None])
-    return PiecewisePolynomial(t[ends], c.transpose(0, 2, 1))
+    c = hermite_coeffs(q[:-1], qd[:-1], qdd[:-1], q[1:], qd[1:], qdd[1:], np.diff(t)[:, None]).transpose(0, 2, 1)
+    # Drop each step's microsecond: the segment after it, extended back to the step's first point.
+    keep = ~second[1:]                                  # segments that do not end at a step's second point
+    after = np.flatnonzero(second[:-1])                 # segments that start at a step's second point
+    c[after] = taylor_shift(c[after], t[after - 1] - t[after])
+    return PiecewisePolynomial(t[~second], c[keep])
