@@ -24,7 +24,7 @@ export MPLBACKEND := Agg
 COLCON_PATHS := --base-paths $(filter-out $(addprefix src/,$(INTERFACES)),$(wildcard src/*)) --build-base build \
 	--install-base install
 
-.PHONY: demo test test-load unit system fuzz bench clean
+.PHONY: demo test test-load unit system fuzz docs bench clean
 
 $(STAMP): requirements.txt $(PACKAGE_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -67,6 +67,10 @@ test-load: $(STAMP)
 fuzz: $(STAMP)
 	$(BIN)/python -m pytest -q -m fuzz --hypothesis-profile=long --import-mode=importlib src/picking_common/test \
 		src/picking_planner/test src/picking_controller/test src/picking_sim/test
+
+# docs/parameters.md from the nodes' parameter tables.
+docs: $(STAMP)
+	$(BIN)/python tools/param_docs.py
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -r benchmarks/requirements.txt

@@ -5,6 +5,8 @@ at any depth, relative ones resolved), not by importing the modules.
 """
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -150,3 +152,11 @@ def test_a_cycle_is_caught(tmp_path):
             me.test_there_is_no_import_cycle_between_modules()
     finally:
         me.modules = original
+
+
+def test_the_parameters_page_is_written_from_the_declared_parameters():
+    """docs/parameters.md is what tools/param_docs.py writes from the nodes' parameter tables (the
+    descriptors the nodes declare): run it after changing a parameter."""
+    done = subprocess.run([sys.executable, str(SRC.parent / 'tools' / 'param_docs.py'), '--check'], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr

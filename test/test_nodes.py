@@ -17,7 +17,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from picking_planner.node import NODE_DEFAULTS
+from picking_planner.parameters import NODE_DEFAULTS
 from picking_planner.resources import config_dir
 from picking_common.status import status_values
 from rosstack import ARM, ARM_JOINTS, BIN, FINAL, GOALS, HOME, Process, make_pose, reach, running_stack, settles_at

@@ -63,3 +63,32 @@ def _fmt(v):
 def status_values(msg):
     """The key/value pairs of a DiagnosticStatus as a dict of strings."""
     return {kv.key: kv.value for kv in msg.values}
+
+
+#: Where diagnostic_aggregator and rqt_robot_monitor read a robot's diagnostics (one topic for all its nodes).
+DIAGNOSTICS = '/diagnostics'
+
+
+class Diagnostics:
+    """A node's health on :data:`DIAGNOSTICS`, once a second: a diagnostic_msgs/DiagnosticArray of the
+    statuses ``report()`` gives as ``(what, level, message, values)``, each named ``'<node>: <what>'``
+    (the node's name with its namespace) with the arm's name, namespaced, as ``hardware_id``."""
+
+    def __init__(self, node, arm_name, report, period=1.0):
+        from diagnostic_msgs.msg import DiagnosticArray
+        self._array = DiagnosticArray
+        self.node = node
+        self.report = report
+        self.prefix = node.get_fully_qualified_name().lstrip('/')
+        self.hardware_id = f'{node.get_namespace().strip("/")}/{arm_name}'.lstrip('/')
+        self.pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS, 10)
+        self.timer = node.create_timer(period, self.publish)
+
+    def publish(self):
+        msg = self._array()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        for what, level, message, values in self.report():
+            s = status(f'{self.prefix}: {what}', level, message, **values)
+            s.hardware_id = self.hardware_id
+            msg.status.append(s)
+        self.pub.publish(msg)

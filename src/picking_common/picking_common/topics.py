@@ -36,19 +36,20 @@ class LatestMessage:
 
     A 1 kHz stream costs an rclpy executor a large share of a core in callbacks; a reader that
     needs only the newest sample (a servo loop, a planner when a goal comes) keeps a depth-1
-    subscription on a helper node that no executor spins, and takes from it when it wants. The
-    helper is named ``<node>_<topic>_reader`` in the node's namespace, so graph tools show who
-    reads the topic. With a ``reader`` (bytes -> message-like object, ValueError if it cannot),
-    the messages are taken as bytes and only the newest is read; bytes the reader refuses are
-    read by the message class instead.
+    subscription that no executor waits on, and takes from it when it wants. The subscription
+    belongs to the reading node itself, so graph tools (``ros2 node info``) show the data flow as it
+    is; it is only left out of the list of subscriptions the node's executor waits on. With a
+    ``reader`` (bytes -> message-like object, ValueError if it cannot), the messages are taken as
+    bytes and only the newest is read; bytes the reader refuses are read by the message class instead.
     """
 
     def __init__(self, parent, msg_type, topic, reader=None):
         self.msg_type = msg_type
         self.reader = reader
-        self.node = rclpy.create_node(f'{parent.get_name()}_{topic.strip("/").replace("/", "_")}_reader',
-                                      namespace=parent.get_namespace(), context=parent.context)
-        self.sub = self.node.create_subscription(msg_type, topic, lambda msg: None, NEWEST, raw=reader is not None)
+        self.node = parent
+        self.sub = parent.create_subscription(msg_type, topic, lambda msg: None, NEWEST, raw=reader is not None)
+        # rclpy's executor waits on every subscription in this list: out of it, this one is read here only.
+        parent._subscriptions.remove(self.sub)
         self.last = None
 
     def take(self):
@@ -73,4 +74,6 @@ class LatestMessage:
         return self.sub.get_publisher_count()
 
     def destroy(self):
-        self.node.destroy_node()
+        for handler in self.sub.event_handlers:
+            self.node.remove_waitable(handler)
+        self.sub.destroy()

@@ -77,3 +77,12 @@ class ControllerCore(Monitoring, Splicing, CommandLimits, Validation):
         self._last_tick = None
         self._stalled_until = -np.inf    # when the last stall ended (its delay was applied)
         self._stall_reported = -np.inf
+
+    def set_tolerances(self, tolerances, stall_limit):
+        """New default tolerances and stall limit: for the trajectories that start from now on (a running
+        one keeps its own; the feedback watchdog's ``state_timeout`` applies at once)."""
+        if not stall_limit > 0:
+            raise ValueError(f'stall_limit must be > 0 s, got {stall_limit}')
+        self.tol = tolerances
+        self.default_tolerances = JointTolerances.default(tolerances, self.n)
+        self.stall_limit = float(stall_limit)

@@ -22,6 +22,7 @@ import time
 import numpy as np
 from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from rclpy.task import Future
@@ -33,13 +34,21 @@ from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop, check_priority, make_realtime
 from picking_common.loop_stats import LoopStats
+from picking_common.params import declare
 from picking_common.run import run_node
-from picking_common.status import Level, stamp_key, status
+from picking_common.status import Diagnostics, Level, stamp_key, status
 from picking_common.topics import RELIABLE, LatestMessage, newest_waiting
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 
 from .core import ControllerCore, ErrorCode, Event, Outcome, Tolerances
+from .events import Mode
+from .parameters import PARAMS, RUNTIME
+
+
+def _tolerances(p):
+    return Tolerances(path=p['path_tolerance'], goal=p['goal_tolerance'], goal_time=p['goal_time_tolerance'],
+                      stopped_velocity=p['stopped_velocity_tolerance'], state_timeout=p['state_timeout'])
 
 
 class ControllerNode(Node):
@@ -47,25 +56,22 @@ class ControllerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('picking_controller', **kwargs)
-        get = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
-        urdf = get('urdf_path', '')
-        self.rate = float(get('update_rate', 1000.0))
-        thread_priority = check_priority(get('thread_priority', 0))
-        executor_priority = check_priority(get('executor_priority', 0), 'executor_priority')
+        p = declare(self, PARAMS)
+        urdf = p['urdf_path']
+        self.rate = float(p['update_rate'])
+        thread_priority = check_priority(p['thread_priority'])
+        executor_priority = check_priority(p['executor_priority'], 'executor_priority')
         if not (executor_priority == 0 or executor_priority < thread_priority):
             raise ValueError(f'executor_priority must be 0 (normal) or 1 to thread_priority - 1 '
                              f'({thread_priority - 1}), got {executor_priority}')
         if not self.rate > 0:
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
-        loop_phase = get('loop_phase', -1.0)
-        tol = Tolerances(path=get('path_tolerance', 0.1), goal=get('goal_tolerance', 0.005),
-                         goal_time=get('goal_time_tolerance', 2.0),
-                         stopped_velocity=get('stopped_velocity_tolerance', 0.02),
-                         state_timeout=get('state_timeout', 0.5))
+        loop_phase = p['loop_phase']
         self.arm = ArmModel.from_urdf(urdf or default_urdf())
-        self.core = ControllerCore(self.arm.all_joint_names, *self.arm.all_limits, tol,
-                                   optional=self.arm.extra_joint_names, stall_limit=get('stall_limit', 0.05))
+        self.core = ControllerCore(self.arm.all_joint_names, *self.arm.all_limits, _tolerances(p),
+                                   optional=self.arm.extra_joint_names, stall_limit=p['stall_limit'])
         self.lock = threading.Lock()
+        self.add_on_set_parameters_callback(self._on_parameters)
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
         self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
         self.pub_loop = self.create_publisher(DiagnosticStatus, 'controller_loop', RELIABLE)
@@ -73,6 +79,7 @@ class ControllerNode(Node):
         self._splice_delay = 0.02       # s ahead that a new trajectory takes over (see _on_trajectory)
         self._commanding = False
         self.create_timer(1.0, self._report_loop)
+        self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         # Taken as bytes and read with numpy where our reader agrees with this middleware: the
         # message class holds the GIL for milliseconds on a few hundred points, which the control
         # loop would wait for.
@@ -91,22 +98,31 @@ class ControllerNode(Node):
         self.action = ActionServer(self, FollowJointTrajectory, 'follow_joint_trajectory',
                                    execute_callback=self._execute, goal_callback=lambda _: GoalResponse.ACCEPT,
                                    cancel_callback=self._cancel)
-        monitor_rate = get('action_monitor_rate', 20.0)
-        if not monitor_rate > 0:
-            raise ValueError(f'action_monitor_rate must be > 0 Hz, got {monitor_rate}')
+        monitor_rate = p['action_monitor_rate']
         # Runs only while an action goal does: an idle controller's executor stays asleep.
         self._feedback_timer = self.create_timer(1.0 / monitor_rate, self._publish_feedback)
         self._feedback_timer.cancel()
         self.loop = PeriodicLoop(1.0 / self.rate, self._tick, name='control', logger=self.get_logger(),
                                  phase=loop_phase, priority=thread_priority)
         self.loop_stats = self.loop.stats
+        self.get_logger().info(f'controlling {len(self.core.names)} joints at {self.rate:g} Hz; waiting for joint_states')
         self.loop.start()
         # This thread goes on to run the executor: trajectories (milliseconds of Python each), status,
         # parameters. It shares the GIL with the loop; at normal priority, any real-time thread on
         # the machine (another arm's loops) can preempt it while it holds the GIL, and the loop
         # waits for it (priority inversion). Just below the loop, it is not preempted that way.
         make_realtime(executor_priority, self.get_logger(), 'the executor thread')
-        self.get_logger().info(f'controlling {len(self.core.names)} joints at {self.rate:g} Hz; waiting for joint_states')
+
+    def _on_parameters(self, params):
+        """The tolerances and the stall limit take effect at once, for the trajectories that start after
+        (ROS checked their ranges); the other parameters are read-only."""
+        changed = {p.name: p.value for p in params if p.name in RUNTIME}
+        if changed:
+            values = {name: self.get_parameter(name).value for name in RUNTIME}
+            values.update(changed)
+            with self.lock:
+                self.core.set_tolerances(_tolerances(values), values['stall_limit'])
+        return SetParametersResult(successful=True)
 
     @staticmethod
     def now():
@@ -279,6 +295,23 @@ class ControllerNode(Node):
             s = self.loop_stats.summary()
             level = Level.OK if s['missed_percent'] < 0.1 else Level.WARN
             self.pub_loop.publish(status('picking_controller', level, LoopStats.describe(s), **s))
+
+    def _diagnose(self):
+        """For /diagnostics: the control loop's health, and what the arm is doing."""
+        if self._commanding:
+            s = self.loop_stats.summary()
+            loop = ('control loop', Level.OK if s['missed_percent'] < 0.1 else Level.WARN, LoopStats.describe(s), s)
+        else:
+            loop = ('control loop', Level.WARN, 'not commanding yet: waiting for joint_states', {})
+        with self.lock:
+            mode, feedback, goal = self.core.mode, self.core.feedback_ok, self.core.goal
+        if mode != Mode.WAITING and not feedback:
+            arm = (Level.ERROR, 'feedback lost: holding, refusing trajectories')
+        elif mode == Mode.FAULT:
+            arm = (Level.ERROR, 'holding after a tolerance violation until a new trajectory')
+        else:
+            arm = (Level.OK if mode != Mode.WAITING else Level.WARN, mode.value + (f' (goal {goal})' if goal else ''))
+        return [loop, ('trajectory', *arm, {'mode': mode.value})]
 
     def close(self):
         self.loop.stop()

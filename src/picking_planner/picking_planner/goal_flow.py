@@ -10,6 +10,7 @@ this part turns messages into their calls and their answers into messages.
 from __future__ import annotations
 
 import time
+import uuid
 from functools import partial
 
 import numpy as np
@@ -23,7 +24,7 @@ from rclpy.task import Future
 from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
-from .goal_policy import WAIT_LIMIT, Goal
+from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
 from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
@@ -37,6 +38,12 @@ def msg_pose(pose):
     """4x4 matrix from a geometry_msgs/Pose; ValueError for NaN or a zero quaternion."""
     p, o = pose.position, pose.orientation
     return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
+
+
+def goal_id(header):
+    """The id of a goal that came on a topic: its stamp as text, or a fresh one when it is zero."""
+    key = stamp_key(header.stamp)
+    return uuid.uuid4().hex if key == ZERO_KEY else key
 
 
 class GoalFlow:
@@ -66,11 +73,13 @@ class GoalFlow:
         return lambda start, gripper: PickCycle(self.planner, self.pick).plan(start, pose, gripper_start=gripper)
 
     # -- goals from the topics -----------------------------------------------------------
+    # A goal's id is its header stamp (a sender that hears no answer sends the same goal again, and
+    # is answered again) or, stamped zero as `ros2 topic pub` sends it, an id of its own.
     def _take(self, sub, msg, kind, plan):
         """The newest goal waiting on ``sub`` (every older one answered as superseded), planned with
         ``plan(msg)`` unless it is a resend of a goal already taken."""
-        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, stamp_key(old.header.stamp)))
-        key = stamp_key(msg.header.stamp)
+        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, goal_id(old.header)))
+        key = goal_id(msg.header)
         repeat, answer = self.policy.repeat(key, serialize_message(msg), self._now())
         if repeat:
             if answer is not None:            # (None: it is still in flight)

@@ -33,28 +33,20 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_common.codec import Codec
+from picking_common.params import declare
 from picking_common.joint_state import reorder
 from picking_common.run import run_node
+from picking_common.status import Diagnostics, Level
 from picking_common.topics import BURST, RELIABLE, LatestMessage
 
 from .goal_flow import GoalFlow
 from .goal_policy import GoalPolicy
 from .kinematics import ArmModel
 from .lifecycle import Lifecycle
+from .parameters import PARAMS, PICK, SETTINGS
 from .pick_cycle import PickSettings
 from .planning import Planner, PlannerSettings
 from .resources import default_urdf
-
-SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
-            'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
-PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time', 'box_position',
-        'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift', 'place_orientation_rpy',
-        'place_yaw_free', 'blend', 'blend_radius')
-
-#: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
-#: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
-NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
-                     approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02)
 
 
 class PlannerNode(GoalFlow, Node):
@@ -62,15 +54,7 @@ class PlannerNode(GoalFlow, Node):
 
     def __init__(self, **kwargs):
         super().__init__('picking_planner', **kwargs)
-        defaults = PlannerSettings()
-        self.declare_parameter('urdf_path', '')
-        self.declare_parameter('reference_timeout', 0.1)
-        self.declare_parameter('start_delay', 0.1)
-        for name in SETTINGS:
-            self.declare_parameter(name, NODE_DEFAULTS.get(name, getattr(defaults, name)))
-        pick = PickSettings()
-        for name in PICK:
-            self.declare_parameter(name, NODE_DEFAULTS.get(name, getattr(pick, name)))
+        declare(self, PARAMS)
         self.arm = ArmModel.from_urdf(self.get_parameter('urdf_path').value or default_urdf())
         # The compiled IK and forward kinematics load now (a fraction of a second from
         # numba's cache), not on the first goal.
@@ -112,6 +96,7 @@ class PlannerNode(GoalFlow, Node):
         # executor callbacks at their rates (rclpy spends about a millisecond on each).
         self.states = LatestMessage(self, JointState, 'joint_states', reader=self.codec.state_reader())
         self.commands = LatestMessage(self, JointState, 'joint_commands', reader=self.codec.state_reader())
+        self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
                                f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')
@@ -135,8 +120,6 @@ class PlannerNode(GoalFlow, Node):
                 pick = PickSettings(**values).validate(self.arm)
             else:
                 pick = self.pick
-            if 'urdf_path' in changes:
-                raise ValueError('urdf_path cannot change while the node runs')
             start_delay = float(changes.get('start_delay', self.policy.start_delay))
             if not start_delay >= 0.0:
                 raise ValueError(f'start_delay must be >= 0 s, got {start_delay}')
@@ -200,6 +183,16 @@ class PlannerNode(GoalFlow, Node):
         quats = Rotation.from_matrix(tool[:, :3, :3]).as_quat()
         self.pub_path.publish(self.codec.path(self.get_clock().now().nanoseconds, self.arm.base_frame,
                                               tool[:, :3, 3], quats))
+
+    def _diagnose(self):
+        """For /diagnostics: whether goals can be planned, and how many are in flight."""
+        why = self._ready()
+        flying = len(self.lifecycle.flights)
+        if why is not None and 'not answered' not in why:
+            return [('planner', Level.WARN, why, {'goals_in_flight': flying})]
+        words = f'{flying} goal{"s" if flying != 1 else ""} in flight' if flying else 'ready, no goal in flight'
+        return [('planner', Level.OK, f'{words}; method {self.planner.settings.method}, path_method '
+                                      f'{self.planner.settings.path_method}', {'goals_in_flight': flying})]
 
     def close(self):
         self.states.destroy()

@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from . import geometry, trajectory
 from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
+from .resources import GRIPPER_OPEN, HOME_POSITIONS
 
 LIFT_METHODS = ('line', 'arc')
 #: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
@@ -91,7 +92,7 @@ class PickSettings:
         ``docs/benchmarks.md`` (row 7).
     """
 
-    home_positions: tuple = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
+    home_positions: tuple = HOME_POSITIONS
     approach_distance: float = 0.10
     lift_height: float = 0.06
     lift_method: str = 'line'
@@ -104,7 +105,7 @@ class PickSettings:
     place_yaw_free: bool = True
     transfer_method: str = 'via_lspb'
     transfer_lift: float = 0.15
-    gripper_open: float = 0.09
+    gripper_open: float = GRIPPER_OPEN
     gripper_closed: float = 0.055
     blend: bool = False
     blend_radius: float = 0.0

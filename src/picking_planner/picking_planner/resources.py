@@ -10,6 +10,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+#: The default arm's home, rad: P0 of the pick cycle (tool level, facing the tree), where the simulator
+#: starts; and its gripper's opening when open, m.
+HOME_POSITIONS = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
+GRIPPER_OPEN = 0.09
+
 
 def config_dir() -> Path:
     """The folder holding ``picking_arm.urdf`` and the nodes' YAML files."""

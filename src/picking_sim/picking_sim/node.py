@@ -9,23 +9,27 @@ like a real arm driver.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop
+from picking_common.params import declare
 from picking_common.run import run_node
+from picking_common.status import Diagnostics, Level
 from picking_common.topics import LATCHED, LatestMessage
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 
+from .parameters import PARAMS
 from .servo import Servo, ServoParams
 
 #: Servo steps run at each wake of the loop thread.
@@ -40,12 +44,11 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('picking_sim', **kwargs)
-        p = self._declare_parameters()
-        self.arm = ArmModel.from_urdf(p['urdf_path'] or default_urdf())
+        p, self.arm = self._declare_parameters()
         self.names = list(self.arm.all_joint_names)
         lower, upper, max_velocity, _ = self.arm.all_limits
         n = len(self.names)
-        q0 = np.array(p['initial_positions'] or np.clip(np.zeros(n), lower, upper), dtype=float)
+        q0 = np.array(p['initial_positions'], dtype=float)
         if q0.shape != (n,) or not np.all(np.isfinite(q0)):
             raise ValueError(f'initial_positions must be {n} finite values, for {self.names}')
         if np.any(q0 < lower) or np.any(q0 > upper):
@@ -83,26 +86,31 @@ class SimNode(Node):
         self.loop = PeriodicLoop(self.servo.dt * STEPS_PER_WAKE, self._tick, name='servo', logger=self.get_logger(),
                                  phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled,
                                  catch_up_yield=CATCH_UP_YIELD)
+        self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         self.loop.start()
         self.get_logger().info(
             f'simulating {self.arm.name} ({n} joints) at {p["servo_rate"]:g} Hz, '
             f'publishing joint_states at {p["publish_rate"]:g} Hz from {np.round(q0, 4).tolist()}')
 
     def _declare_parameters(self):
-        defaults = {
-            'urdf_path': '', 'publish_rate': 100.0, 'servo_rate': 1000.0,
-            'noise_std': 0.0, 'command_timeout': 0.05,
-            'servo.bandwidth': 25.0, 'servo.damping': 1.0, 'servo.integral': 2.0,
-            'servo.inertia': 0.5, 'servo.friction': 0.8, 'servo.max_torque': 400.0,
-            'servo.velocity_margin': 1.2, 'thread_priority': 0, 'loop_phase': -1.0,
-        }
-        out = {}
-        for name, value in defaults.items():
-            out[name] = self.declare_parameter(name, value).value
-        # No default: unset means "all zeros".
-        out['initial_positions'] = list(
-            self.declare_parameter('initial_positions', Parameter.Type.DOUBLE_ARRAY).value or [])
-        return out
+        """Every parameter with its descriptor; ``initial_positions`` defaults to the pick cycle's home
+        with the gripper open, for an arm with those joints (else every joint at 0, within its limits)."""
+        out = declare(self, [p for p in PARAMS if p.name != 'initial_positions'])
+        arm = ArmModel.from_urdf(out['urdf_path'] or default_urdf())
+        start = next(p for p in PARAMS if p.name == 'initial_positions')
+        if len(start.default) != len(arm.all_joint_names):
+            lower, upper, _, _ = arm.all_limits
+            start = dataclasses.replace(start, default=np.clip(np.zeros(len(arm.all_joint_names)), lower, upper).tolist())
+        out.update(declare(self, [start]))
+        self.add_on_set_parameters_callback(self._on_parameters)
+        return out, arm
+
+    def _on_parameters(self, params):
+        """``noise_std`` takes effect at once (ROS checked its range); the rest are read-only."""
+        for p in params:
+            if p.name == 'noise_std':
+                self.noise_std = float(p.value)
+        return SetParametersResult(successful=True)
 
     def _apply_newest_command(self, t_state):
         """Apply the newest command, moved on from its stamp to ``t_state`` (the servo's time)."""
@@ -159,6 +167,14 @@ class SimNode(Node):
         sec = int(t_state // 1)
         nanosec = min(int(round((t_state - sec) * 1e9)), 999_999_999)
         self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd, self.servo.torque))
+
+    def _diagnose(self):
+        """For /diagnostics: the servo, following joint_commands or holding."""
+        rate = 1.0 / self.servo.dt
+        if self._commanded:
+            return [('servo', Level.OK, f'{rate:g} Hz, following joint_commands', {'servo_rate': rate})]
+        return [('servo', Level.WARN, f'{rate:g} Hz, no joint_commands: holding the last commanded position',
+                 {'servo_rate': rate})]
 
     def close(self):
         self.loop.stop()

@@ -155,7 +155,8 @@ def run(args, node):
     if handle is None or not handle.accepted:
         print(f'picking-goal: the planner did not take the goal within {args.timeout:g} s', file=sys.stderr)
         return EXIT_TIMEOUT
-    print(f'sent: {name} goal taken by the planner ({1e3 * (time.monotonic() - t_sent):.0f} ms)')
+    print(f'sent: {name} goal {bytes(handle.goal_id.uuid).hex()} taken by the planner '
+          f'({1e3 * (time.monotonic() - t_sent):.0f} ms; planner_status names it so)')
     if args.no_wait:
         return EXIT_OK
     result = handle.get_result_async()

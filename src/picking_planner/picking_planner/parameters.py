@@ -1,0 +1,82 @@
+"""The planner's ROS parameters (pure: no rclpy; picking_common.params declares them).
+
+The defaults are the library's (:class:`~picking_planner.planning.PlannerSettings`,
+:class:`~picking_planner.pick_cycle.PickSettings`) but where :data:`NODE_DEFAULTS` says otherwise.
+Every one but ``urdf_path`` takes effect at run time, checked with the others (a set that the
+planner cannot plan with is refused with the reason).
+"""
+
+from picking_common.params import Param
+
+from .pick_cycle import PickSettings
+from .planning import PlannerSettings
+
+#: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
+#: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
+NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
+                     approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02)
+
+#: The parameters of the planning core (PlannerSettings) and of the pick cycle (PickSettings).
+SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
+            'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
+PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
+        'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
+        'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius')
+
+
+def _default(name):
+    if name in NODE_DEFAULTS:
+        return NODE_DEFAULTS[name]
+    value = getattr(PlannerSettings() if name in SETTINGS else PickSettings(), name)
+    return [float(v) for v in value] if isinstance(value, tuple) else value
+
+
+_TEXT = {
+    'method': ('pose goals: cubic, quintic, lspb, optimal (joint space; optimal is jerk-limited and time-optimal) or '
+               'line (Cartesian)', '', None),
+    'path_method': ('path goals: via_lspb, quintic_via, optimal, line or arc', '', None),
+    'speed_scale': ('fraction of the joint velocity limits the plans use (accelerations: its square, jerks: its '
+                    'cube)', '', (0.01, 1.0)),
+    'duration': ('duration of a pose move; 0: the shortest within the limits', 's', (0.0, 3600.0)),
+    'sample_period': ('longest time between two trajectory points (the paper samples every 0.01 s; the points also '
+                      "fall on every break of the plan)", 's', (0.001, 1.0)),
+    'cartesian_speed': ('first guess of the tool speed on lines and arcs (stretched to the joint limits)', 'm/s',
+                        (0.001, 10.0)),
+    'cartesian_accel': ('tool acceleration on lines and arcs', 'm/s^2', (0.001, 100.0)),
+    'cartesian_profile': ('progress along lines and arcs: quintic, lspb, cubic or optimal (jerk-limited, '
+                          'time-optimal)', '', None),
+    'max_joint_step': ('largest joint change between two samples of a Cartesian path; a larger one (an IK branch '
+                       'flip) refuses the path', 'rad', (0.001, 3.2)),
+    'limit_jerk': ('keep the jerk limits too: lines, arcs and quintics stretched, cubic and LSPB moves refused', '',
+                   None),
+    'approach_distance': ('P1 lies this far back from the apple along the tool z axis', 'm', (0.001, 1.0)),
+    'lift_height': ('P3 lies this far above the apple', 'm', (0.001, 1.0)),
+    'lift_method': ('the lift: line (straight up) or arc (up and back along a quarter arc)', '', None),
+    'approach_method': ('joint-space moves to P0 and P1: lspb, quintic, cubic or optimal', '', None),
+    'grasp_time': ('dwell while the gripper closes', 's', (0.001, 60.0)),
+    'release_time': ('dwell while the gripper opens', 's', (0.001, 60.0)),
+    'box_position': ('P5, the drop point in the fruit box (x, y, z in base_link)', 'm', None),
+    'box_drop_height': ('P4 lies this far above P5', 'm', (0.001, 2.0)),
+    'home_positions': ("P0, the arm's home, one value per arm joint (the simulator starts there)", 'rad', None),
+    'transfer_method': ('the transfer to the box and the return: via_lspb, quintic_via or optimal', '', None),
+    'transfer_lift': ("the transfer's via point is the joint-space midpoint with the shoulder lifted back by this",
+                      'rad', (0.0, 0.999)),
+    'place_orientation_rpy': ('tool orientation over the box, roll, pitch, yaw', 'rad', None),
+    'place_yaw_free': ('the planner may turn the gripper about the vertical over the box (the quickest turn)', '',
+                       None),
+    'gripper_open': ('finger opening of the open gripper', 'm', (0.0, 1.0)),
+    'gripper_closed': ('finger opening closed on an apple', 'm', (0.0, 1.0)),
+    'blend': ('pass P1, P3 and P4 at speed (needs approach and transfer methods optimal and cartesian_profile '
+              'optimal)', '', None),
+    'blend_radius': ('with blend: the joint moves meet the lines this far from P1, P3 and P4, rounding the corners '
+                     '(less than half of each line)', 'm', (0.0, 0.5)),
+}
+
+PARAMS = (
+    Param('urdf_path', '', "the arm's URDF file; empty: config/picking_arm.urdf", read_only=True),
+    Param('reference_timeout', 0.1, "plan from the controller's reference (joint_commands) while it is this fresh, "
+          'else from joint_states', 's', (0.001, 10.0)),
+    Param('start_delay', 0.1, 'a plan starts this long after its planning is expected to end (stamped so), so that a '
+          'moving arm never jumps', 's', (0.0, 10.0)),
+    *(Param(name, _default(name), text, unit, rng) for name, (text, unit, rng) in _TEXT.items()),
+)

@@ -1,0 +1,35 @@
+"""The simulator's ROS parameters (pure: no rclpy; picking_common.params declares them)."""
+
+from picking_common.params import Param
+from picking_planner.resources import GRIPPER_OPEN, HOME_POSITIONS
+
+#: The pick cycle's home with the gripper open: where the default arm starts (another arm: every joint at 0).
+HOME = [*HOME_POSITIONS, GRIPPER_OPEN]
+
+PARAMS = (
+    Param('urdf_path', '', "the arm's URDF file; empty: config/picking_arm.urdf", read_only=True),
+    Param('publish_rate', 100.0, 'rate of joint_states', 'Hz', (1.0, 10000.0), read_only=True),
+    Param('servo_rate', 1000.0, 'rate of the position loop of Fig. 1 (at least publish_rate)', 'Hz',
+          (10.0, 100000.0), read_only=True),
+    Param('noise_std', 0.0, 'standard deviation of the Gaussian noise added to the joint_states positions', 'rad',
+          (0.0, 1.0)),
+    Param('command_timeout', 0.05, 'time without joint_commands after which the reference stops moving', 's',
+          (0.001, 10.0), read_only=True),
+    Param('thread_priority', 0, 'SCHED_FIFO priority of the servo thread (needs CAP_SYS_NICE or ulimit -r, else a '
+          'warning); 0: normal scheduling', '', (0, 99), read_only=True),
+    Param('loop_phase', -1.0, "-1: the servo's steps count from its start; 0 to < 1: at this fraction of a period past "
+          'whole periods of the monotonic clock (several arms on one machine)', '', (-1.0, 1.0), read_only=True),
+    Param('initial_positions', HOME, "the joints' positions at start, one per joint (the gripper's opening in m): "
+          "the pick cycle's home with the gripper open (an arm with other joints: every joint at 0)", 'rad',
+          read_only=True),
+    Param('servo.bandwidth', 25.0, 'closed-loop natural frequency of the position loop', 'Hz', (0.1, 1000.0),
+          read_only=True),
+    Param('servo.damping', 1.0, 'damping ratio of the position loop', '', (0.01, 10.0), read_only=True),
+    Param('servo.integral', 2.0, 'integral gain relative to the proportional gain', '1/s', (0.0, 100.0),
+          read_only=True),
+    Param('servo.inertia', 0.5, 'inertia each motor sees', 'kg m^2', (0.0001, 1000.0), read_only=True),
+    Param('servo.friction', 0.8, 'viscous friction', 'N m s/rad', (0.0, 1000.0), read_only=True),
+    Param('servo.max_torque', 400.0, 'motor torque saturation', 'N m', (0.1, 100000.0), read_only=True),
+    Param('servo.velocity_margin', 1.2, 'the drive saturates at this times the URDF velocity limit (plans use up to '
+          '1x)', '', (1.0, 10.0), read_only=True),
+)
