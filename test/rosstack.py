@@ -172,7 +172,9 @@ class Client(Node):
     def answers(self, since, key=None):
         """The planner's statuses since ``since`` about goal ``key`` (default: the last goal sent)."""
         key = key or stamp_key(self._goal[1].header.stamp)
-        return [m for _, m in self.planner_status[since['planner']:] if status_values(m).get('goal') == key]
+        # (A topic goal's statuses carry its stamp; its id is the stamp, or its own when the stamp is zero.)
+        return [m for _, m in self.planner_status[since['planner']:]
+                if key in (status_values(m).get('goal'), status_values(m).get('stamp'))]
 
     def planner_answer(self, since, timeout=20.0, resend_every=2.0):
         """The planner's first answer about the last goal sent, since ``since``. The last goal is

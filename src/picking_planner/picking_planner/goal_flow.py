@@ -46,6 +46,11 @@ def goal_id(header):
     return uuid.uuid4().hex if key == ZERO_KEY else key
 
 
+def _stamp(goal):
+    """The status value naming a topic goal as its sender knows it: its header stamp."""
+    return {'stamp': goal.stamp} if goal.stamp else {}
+
+
 class GoalFlow:
     """Goals from the topics and the actions, through planning, to the controller and back."""
 
@@ -78,8 +83,9 @@ class GoalFlow:
     def _take(self, sub, msg, kind, plan):
         """The newest goal waiting on ``sub`` (every older one answered as superseded), planned with
         ``plan(msg)`` unless it is a resend of a goal already taken."""
-        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, goal_id(old.header)))
-        key = goal_id(msg.header)
+        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, goal_id(old.header),
+                                                                     stamp_key(old.header.stamp)))
+        key, stamp = goal_id(msg.header), stamp_key(msg.header.stamp)
         repeat, answer = self.policy.repeat(key, serialize_message(msg), self._now())
         if repeat:
             if answer is not None:            # (None: it is still in flight)
@@ -89,9 +95,9 @@ class GoalFlow:
         try:
             planner = plan(msg)
         except ValueError as exc:
-            self._end(Goal(kind, key, None), Ending(Outcome.REFUSED, str(exc)))
+            self._end(Goal(kind, key, None, stamp=stamp), Ending(Outcome.REFUSED, str(exc)))
             return
-        self._handle(Goal(kind, key, planner, self._now()))
+        self._handle(Goal(kind, key, planner, self._now(), stamp=stamp))
 
     def _on_goal_pose(self, msg):
         self._take(self.sub_pose, msg, 'pose', self._plan_pose)
@@ -159,7 +165,7 @@ class GoalFlow:
             outcome, Level.ERROR)
         text = f'{goal.kind} goal {outcome.word}: {ending.message}'
         self._answer(goal.key, status('picking_planner', level, text, goal=goal.key, kind=goal.kind,
-                                      state=outcome.word, controller_error_code=ending.code))
+                                      state=outcome.word, controller_error_code=ending.code, **_stamp(goal)))
         if outcome == Outcome.SUPERSEDED:
             self._superseded += 1
             if self._now() - self._superseded_logged > 1.0:
@@ -172,8 +178,9 @@ class GoalFlow:
         if goal.finish is not None:
             goal.finish(outcome, ending.message, ending.code, duration)
 
-    def _end_waiting(self, kind, key):
-        self._end(Goal(kind, key, None), Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
+    def _end_waiting(self, kind, key, stamp=''):
+        self._end(Goal(kind, key, None, stamp=stamp),
+                  Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
 
     def _answer(self, key, msg):
         """Publish the answer to goal ``key`` (kept, should the goal come again)."""
@@ -266,7 +273,7 @@ class GoalFlow:
         flight = self.lifecycle.flights.get(goal.key)
         extra = flight.extra if flight is not None else {}
         again = ' again (the last plan reached the controller too late)' if goal.attempt else ''
-        self._answer(goal.key, status('picking_planner', Level.OK, f'{goal.kind} goal {state}{again}: {words}',
+        self._answer(goal.key, status('picking_planner', Level.OK, f'{goal.kind} goal {state}{again}: {words}', **_stamp(goal),
                                       goal=goal.key, kind=goal.kind, state=state, **extra))
 
     def _on_response(self, goal, future):

@@ -70,6 +70,7 @@ class Goal:
     attempt: int = 0              # how many times it was planned again after a late verdict
     finish: Callable | None = None
     feedback: Callable | None = None
+    stamp: str = ''               # a topic goal's header stamp as text (its statuses carry it: its sender's name for it)
 
 
 @dataclass

@@ -333,3 +333,11 @@ def test_the_time_optimal_stop_comes_to_rest_within_the_limits():
     assert end_q[0] > 0.5 and end_q[1] < -1.0                     # it went on the way it was going
     with pytest.raises(ValueError):
         time_optimal_stop([0.0], [np.nan], [0.0], 1.0, 1.0, 1.0)
+
+
+def test_a_move_to_where_the_arm_already_rests_is_a_short_hold():
+    """Not an internal error ("breaks must be ..."): the pose goal to where the tool is, with method optimal."""
+    q = np.array([0.1, -0.2, 0.3])
+    traj = trajectory.time_optimal(q, q, [1.0] * 3, [2.0] * 3, [20.0] * 3)
+    assert traj.duration > 0.0 and traj.end_state()[0] == pytest.approx(q)
+    assert np.all(traj.sample(np.linspace(0.0, traj.duration, 5))[1] == 0.0)

@@ -14,8 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import as_joint_vector
-from .piecewise import PiecewisePolynomial, merge_joint_pieces, taylor_shift
+from .piecewise import PiecewisePolynomial, hold, merge_joint_pieces, taylor_shift
 from .polynomial import hermite_coeffs
+
+#: s a move to where the arm already is, at rest, lasts: a hold (a trajectory needs a duration).
+NO_MOVE = 0.01
 
 
 def _limits(value, n, name):
@@ -77,6 +80,8 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
         raise ValueError(f'no jerk-limited move: {" ".join(str(exc).split())}') from None
     if result != Result.Working and result != Result.Finished:
         raise ValueError(f'no jerk-limited move reaches the target within the limits (Ruckig: {result.name})')
+    if traj.duration <= 0.0:                    # already there, at rest: nothing to move
+        return hold(qf, max(float(min_duration), NO_MOVE))
     return _ending_at(_to_piecewise(traj, n), qf)
 
 
