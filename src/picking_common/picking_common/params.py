@@ -88,3 +88,15 @@ def markdown(params, shipped=None):
         cells += [p.unit, rng, 'yes' if p.read_only else '', p.description.replace('|', '\\|')]
         rows.append('| ' + ' | '.join(cells) + ' |')
     return '\n'.join(rows)
+
+
+def usage(prog, doc, params):
+    """``--help`` of a node: how to run it, what it does (``doc``), and its parameters."""
+    lines = [f'usage: {prog} [-h] [--ros-args [-r __ns:=/NAMESPACE] [-p NAME:=VALUE ...] [--params-file FILE ...]]',
+             '', doc.strip(), '', 'parameters (-p NAME:=VALUE, or a --params-file; docs/parameters.md):']
+    for p in params:
+        default = p.default if not isinstance(p.default, str) else repr(p.default)
+        rng = f', {p.range[0]:g} to {p.range[1]:g}' if p.range is not None else ''
+        lines.append(f'  {p.name} = {default}{" " + p.unit if p.unit else ""}{rng}'
+                     f'{" (read-only)" if p.read_only else ""}: {p.description}')
+    return '\n'.join(lines)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import faulthandler
 import gc
+import os
 import signal
 import sys
 import threading
@@ -18,13 +19,26 @@ from rclpy.signals import SignalHandlerOptions
 SWITCH_INTERVAL = 2e-5
 
 
-def run_node(make_node, args=None):
+def run_node(make_node, args=None, help=None):
     """Init, build the node, spin, and exit 0 without a traceback on SIGINT/SIGTERM.
 
+    ``-h`` / ``--help`` before the ROS arguments prints ``help`` and exits 0; any other argument
+    there is refused (exit 2): a node takes only ROS arguments.
     rclpy's own signal handling can race with a multi-threaded executor at
     shutdown (an RCLError from a wait set, or a spin that never wakes), so the
     signals only set a flag here and the main thread spins in short slices.
     """
+    from rclpy.utilities import remove_ros_args
+    argv = sys.argv if args is None else args
+    own = remove_ros_args(argv)[1:]
+    prog = os.path.basename(argv[0]) if argv else 'node'
+    if help is not None and ('-h' in own or '--help' in own):
+        print(help)
+        return 0
+    if own:
+        print(f'{help.splitlines()[0] if help else prog}\n{prog}: error: unrecognized arguments: {" ".join(own)} '
+              '(a node takes only ROS arguments, after --ros-args)', file=sys.stderr)
+        return 2
     stop = threading.Event()
 
     def on_signal(signum, frame):
@@ -55,6 +69,7 @@ def run_node(make_node, args=None):
             print(f'{sys.argv[0]}: {exc}', file=sys.stderr)
             return 2
         gc.freeze()                              # the node's own objects too (no collection: cheap)
+        _warn_if_named_twice(node)
         # One executor thread: rclpy's multi-threaded executor costs far more per
         # callback, and each node's real-time loop runs in a thread of its own.
         executor = SingleThreadedExecutor()
@@ -76,3 +91,21 @@ def run_node(make_node, args=None):
         for sig, handler in old.items():
             signal.signal(sig, handler)
     return 0
+
+
+#: s of discovery before a node looks for another of its name.
+NAME_CHECK = 2.0
+
+
+def _warn_if_named_twice(node):
+    """Once discovery has had time: an ERROR when another node of this name runs in this namespace
+    (both would answer every message; one of them should stop)."""
+    def check():
+        timer.cancel()
+        me = (node.get_name(), node.get_namespace())
+        count = sum(1 for n in node.get_node_names_and_namespaces() if n == me)
+        if count > 1:
+            node.get_logger().error(f'{count} nodes named {node.get_fully_qualified_name()} run in this ROS domain: '
+                                    'each answers every message (trajectories run twice, goals planned twice); '
+                                    'stop all but one, or start this one in its own namespace (-r __ns:=/arm2)')
+    timer = node.create_timer(NAME_CHECK, check)

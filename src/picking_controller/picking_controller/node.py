@@ -34,7 +34,7 @@ from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop, check_priority, make_realtime
 from picking_common.loop_stats import LoopStats
-from picking_common.params import declare
+from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status
 from picking_common.topics import RELIABLE, LatestMessage, newest_waiting
@@ -321,7 +321,7 @@ class ControllerNode(Node):
 
 
 def main(args=None):
-    return run_node(ControllerNode, args)
+    return run_node(ControllerNode, args, help=usage('picking-controller', __doc__, PARAMS))
 
 
 if __name__ == '__main__':

@@ -29,6 +29,7 @@ from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
 from .pick_cycle import PickCycle
+from .planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS
 from .trajectory import waypoints
 
 RESULTS = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}
@@ -61,16 +62,30 @@ class GoalFlow:
             raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
                              '(no TF here: give poses in the base frame, or leave frame_id empty)')
 
-    def _plan_pose(self, pose_stamped):
+    def _plan_pose(self, pose_stamped, method=''):
         self._check_frame(pose_stamped.header)
-        return lambda start, _: self.planner.plan_pose(start, msg_pose(pose_stamped.pose))
+        planner = self._planner_for(method, POSE_METHODS, 'method')
+        return lambda start, _: planner.plan_pose(start, msg_pose(pose_stamped.pose), method or None)
 
-    def _plan_path(self, pose_array):
+    def _plan_path(self, pose_array, method=''):
         self._check_frame(pose_array.header)
         if not pose_array.poses:
             raise ValueError('the path has no poses')
+        planner = self._planner_for(method, PATH_METHODS, 'path_method')
         poses = [msg_pose(p) for p in pose_array.poses]
-        return lambda start, _: self.planner.plan_path(start, poses)
+        return lambda start, _: planner.plan_path(start, poses, method or None)
+
+    def _planner_for(self, method, methods, parameter):
+        """The planner for a goal that names its own method (empty: the node's parameter). A method that
+        steps the acceleration (cubic, LSPB), asked for by name, is planned as the paper defines it: with
+        the velocity and acceleration limits, not the jerk limits."""
+        if not method:
+            return self.planner
+        if method not in methods:
+            raise ValueError(f'unknown {parameter} {method!r}; choose one of {", ".join(methods)}')
+        if method in JERK_UNBOUNDED and self.planner.settings.limit_jerk:
+            return self.planner.with_settings(limit_jerk=False, **{parameter: method})
+        return self.planner
 
     def _plan_pick(self, target):
         self._check_frame(target.header)

@@ -33,7 +33,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_common.codec import Codec
-from picking_common.params import declare
+from picking_common.params import declare, usage
 from picking_common.joint_state import reorder
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level
@@ -87,8 +87,8 @@ class PlannerNode(GoalFlow, Node):
                                      goal_callback=lambda _: GoalResponse.ACCEPT,
                                      cancel_callback=self._cancel)
                         for action, name, kind, plan in (
-                            (MoveToPose, 'move_to_pose', 'pose', lambda g: self._plan_pose(g.pose)),
-                            (FollowPath, 'follow_path', 'path', lambda g: self._plan_path(g.path)),
+                            (MoveToPose, 'move_to_pose', 'pose', lambda g: self._plan_pose(g.pose, g.method)),
+                            (FollowPath, 'follow_path', 'path', lambda g: self._plan_path(g.path, g.method)),
                             (Pick, 'pick', 'pick', lambda g: self._plan_pick(g.target)))]
         self._superseded = 0          # goals answered as superseded since the last log line
         self._superseded_logged = 0.0
@@ -200,7 +200,7 @@ class PlannerNode(GoalFlow, Node):
 
 
 def main(args=None):
-    return run_node(PlannerNode, args)
+    return run_node(PlannerNode, args, help=usage('picking-planner', __doc__, PARAMS))
 
 
 if __name__ == '__main__':

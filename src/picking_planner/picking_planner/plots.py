@@ -27,7 +27,7 @@ def legend_below(fig, ax, ncol=4):
     fig.tight_layout(rect=(0.0, 0.22 * rows / fig.get_figheight(), 1.0, 1.0))
 
 
-def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=()):
+def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=(), mark_labels=(), extra=None):
     """Position, velocity and acceleration over time, one line per joint (Figs. 5, 9-11, 14).
 
     Parameters
@@ -41,11 +41,15 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
         Position unit for the axis labels (``rad``, ``deg``, ``m``).
     marks : sequence of float
         Times to mark with vertical lines (segment ends, via points).
+    mark_labels : sequence of str
+        A name for each mark, written at the top of the plot (the segment that starts there).
+    extra : (label, values (N,), unit), optional
+        One more quantity on an axis of its own below (the gripper's opening, in m).
     """
     plt = _pyplot()
     n = q.shape[1]
     labels = labels or [f'joint {j + 1}' for j in range(n)]
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5))
+    fig, axes = plt.subplots(3 + (extra is not None), 1, sharex=True, figsize=(8, 7.5 + 2.0 * (extra is not None)))
     units = (f' [{unit}]', f' [{unit}/s]', f' [{unit}/s²]') if unit else ('', ' [1/s]', ' [1/s²]')
     for ax, data, name in zip(axes, (q, qd, qdd), (f'{what}{u}' for what, u in zip(
             ('position', 'velocity', 'acceleration'), units))):
@@ -55,6 +59,16 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
             ax.axvline(m, color='0.8', lw=0.8, zorder=0)
         ax.set_ylabel(name)
         ax.grid(True, alpha=0.3)
+    if extra is not None:
+        label, values, extra_unit = extra
+        axes[3].plot(t, values, color='0.3', label=label)
+        for m in marks:
+            axes[3].axvline(m, color='0.8', lw=0.8, zorder=0)
+        axes[3].set_ylabel(f'{label} [{extra_unit}]')
+        axes[3].grid(True, alpha=0.3)
+    for m, name in zip(marks, mark_labels):
+        axes[0].annotate(name, (m, 1.0), xycoords=('data', 'axes fraction'), rotation=90, fontsize='x-small',
+                         va='top', ha='right', color='0.4')
     axes[0].set_title(title)
     axes[-1].set_xlabel('time [s]')
     if n > 1:
@@ -66,19 +80,22 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=())
     return Path(path)
 
 
-def plot_path_3d(path, curves, points=None, title='', point_labels=None):
-    """A 3D tool path (Fig. 13): ``curves`` maps a label to an (N, 3) polyline."""
+def plot_path_3d(path, curves, points=None, title='', point_labels=None, unit=''):
+    """A 3D tool path (Fig. 13): ``curves`` maps a label to an (N, 3) polyline; the first is drawn wide and
+    light beneath the others (a plan under what was measured along it). ``unit`` labels the axes."""
     plt = _pyplot()
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection='3d')
-    for label, xyz in curves.items():
-        ax.plot(xyz[:, 0], xyz[:, 1], xyz[:, 2], label=label)
+    for k, (label, xyz) in enumerate(curves.items()):
+        style = dict(lw=4, alpha=0.35) if k == 0 and len(curves) > 1 else dict(lw=1.2)
+        ax.plot(xyz[:, 0], xyz[:, 1], xyz[:, 2], label=label, **style)
     if points is not None:
-        ax.scatter(points[:, 0], points[:, 1], points[:, 2], color='C3', s=14, label='interpolation points')
+        ax.scatter(points[:, 0], points[:, 1], points[:, 2], color='C3', s=14, label='P1, insertion points, P3')
     for label, xyz in (point_labels or {}).items():
         ax.scatter(*xyz, color='k', s=25)
         ax.text(*xyz, f' {label}')
-    ax.set_xlabel('x'), ax.set_ylabel('y'), ax.set_zlabel('z')
+    u = f' [{unit}]' if unit else ''
+    ax.set_xlabel(f'x{u}'), ax.set_ylabel(f'y{u}'), ax.set_zlabel(f'z{u}')
     _equal_axes(ax, np.vstack(list(curves.values())))
     ax.set_title(title)
     ax.legend(loc='upper left', fontsize='small')
@@ -130,7 +147,7 @@ def plot_workspace(path, tool, arm):
     return Path(path)
 
 
-def plot_corners(path, corners, tracks, title, window=0.05):
+def plot_corners(path, corners, tracks, title, window=0.05, caption=None):
     """The tool near each corner of a path, side on: one panel per ``(name, point, direction)`` of
     ``corners`` (the line's unit direction toward the point), with every track of ``tracks`` (label ->
     name -> (N, 3) tool positions) within ``window`` m of the point, drawn as the distance along the
@@ -156,6 +173,8 @@ def plot_corners(path, corners, tracks, title, window=0.05):
         ax.set_visible(False)
     fig.suptitle(title)
     legend_below(fig, axes.flat[0], ncol=len(tracks))
+    if caption:
+        fig.text(0.5, 0.005, caption, ha='center', va='bottom', fontsize='x-small', wrap=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)

@@ -22,7 +22,7 @@ from std_msgs.msg import String
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop
-from picking_common.params import declare
+from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level
 from picking_common.topics import LATCHED, LatestMessage
@@ -182,7 +182,7 @@ class SimNode(Node):
 
 
 def main(args=None):
-    return run_node(SimNode, args)
+    return run_node(SimNode, args, help=usage('picking-sim', __doc__, PARAMS))
 
 
 if __name__ == '__main__':

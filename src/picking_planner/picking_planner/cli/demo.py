@@ -165,6 +165,24 @@ def run_arc_scenario(demo, spin_until, rec):
     return {'points': [p.tolist() for p in pts], 'trajectory_index': n, 'scale': scale}
 
 
+#: Status values that name something (a goal, a trajectory by its stamp): text, never numbers.
+NAMES = ('goal', 'trajectory', 'stamp')
+
+
+def _numbers(value):
+    """Status values (text) as numbers where they are numbers, for run.json."""
+    if isinstance(value, dict):
+        return {k: v if k in NAMES else _numbers(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_numbers(v) for v in value]
+    if isinstance(value, str):
+        try:
+            return float(value) if any(c in value for c in '.eE') else int(value)
+        except ValueError:
+            return value
+    return value
+
+
 #: What a run writes into --out (removed first, so that nothing left from an earlier run is taken for this one's).
 OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png')
 #: Lines of each node's log quoted in the report of a failed run.
@@ -213,7 +231,7 @@ def main(argv=None):
         report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick)
     else:
         failure_report(rec, events, args.out)
-    summary = {'ok': bool(ok and report_ok), 'events': {k: v for k, v in events.items() if k != 'plan'},
+    summary = {'ok': bool(ok and report_ok), 'events': _numbers({k: v for k, v in events.items() if k != 'plan'}),
                'wall_time_s': time.monotonic() - t0}
     (args.out / 'run.json').write_text(json.dumps(summary, indent=2, default=str))
     log(f'{"DONE" if summary["ok"] else "FAILED"} in {summary["wall_time_s"]:.1f} s; see {args.out}/report.md')

@@ -69,8 +69,11 @@ def commanded_arrays(messages, names, origin):
 
 
 def _table(header, rows):
-    out = ['| ' + ' | '.join(header) + ' |', '| ' + ' | '.join('---' for _ in header) + ' |']
-    out += ['| ' + ' | '.join(str(c) for c in r) + ' |' for r in rows]
+    """A Markdown table; a pipe inside a cell (``peak |v|``) is escaped, so that every row keeps its cells."""
+    def cell(c):
+        return str(c).replace('|', '\\|')
+    out = ['| ' + ' | '.join(cell(h) for h in header) + ' |', '| ' + ' | '.join('---' for _ in header) + ' |']
+    out += ['| ' + ' | '.join(cell(c) for c in r) + ' |' for r in rows]
     return '\n'.join(out)
 
 
@@ -188,7 +191,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
              'pick_target was published (planning, transport and settling included)',
              f'- apple at {demo["apple_position"]} m, box drop point at {params.get("box_position")} m, '
              f'speed_scale {params.get("speed_scale")}',
-             f'- planning time in the planner node: {events["plan"].get("planning_ms", "?")} ms', '',
+             f'- planning time in the planner node: {float(events["plan"].get("planning_ms", "nan")):.1f} ms', '',
              '## Segments', '', _table(['segment', 'method', 'duration [s]'],
                                        [(lb, m, f'{d:.3f}') for lb, m, d in segments]), '',
              '## Joints: peaks against the limits, tracking', '',
@@ -238,28 +241,34 @@ def analyse_and_report(rec, events, config, out, quick=False):
     # Plots.
     files = []
     tp = t - t[0]
-    files.append(plot_profiles(out / 'joints.png', tp, q, qd, qdd, 'Pick cycle: planned joint position, velocity, '
-                               'acceleration (Figs. 9-11, 14)', 'rad', labels=names, marks=starts[1:] - t[0]))
+    files.append(plot_profiles(out / 'joints.png', tp, q[:, :n_arm], qd[:, :n_arm], qdd[:, :n_arm],
+                               'Pick cycle: planned joint position, velocity, acceleration (Figs. 9-11, 14)', 'rad',
+                               labels=names[:n_arm], marks=starts[1:] - t[0], mark_labels=[s[0] for s in segments[1:]],
+                               extra=('gripper opening', q[:, n_arm], 'm') if q.shape[1] > n_arm else None))
     files.append(_plot_error(out / 'tracking_error.png', t_meas[window] - t[0], err[window], names))
     key = PickCycle(Planner(arm), PickSettings(**{k: (tuple(v) if isinstance(v, list) else v)
                                                  for k, v in planner_params.items()
                                                  if k in PickSettings.__dataclass_fields__})).key_poses(apple_T)
     home = np.asarray(planner_params.get('home_positions'), float)
     marks = {'P0': arm.fk(home)[:3, 3], **{k: v[:3, 3] for k, v in key.items()}}
-    marks['P5/P6 release'] = marks.pop('P5')
     curves = {'planned': arm.fk(q[:, :n_arm])[:, :3, 3], 'measured': arm.fk(q_meas[window][:, :n_arm])[:, :3, 3]}
     if 'arc' in events:
         _, ta, qa, _, _ = planned_arrays(trajectories[events['arc']['trajectory_index']][1],
                                          trajectories[events['arc']['trajectory_index']][0])
-        curves['Sec. 3.1 arc'] = arm.fk(qa[:, :n_arm])[:, :3, 3]
-    files.append(plot_path_3d(out / 'tool_path.png', curves, None, 'Tool path of the pick cycle', marks))
+        curves['scenario 2: the Sec. 3.1 arc (planned)'] = arm.fk(qa[:, :n_arm])[:, :3, 3]
+    files.append(plot_path_3d(out / 'tool_path.png', curves, None, 'Tool path of the pick cycle (P0-P5 as in the '
+                              'README)', marks, unit='m'))
     if compared:
         corners = pick_corners(arm, compared[THROUGH_CORNERS])
         tracks = {label: {name: corner_path(arm, compared[key], name) for name, _, _ in corners}
                   for label, key in (('through the corners', THROUGH_CORNERS),
                                                    (f'rounded, blend_radius {100 * ROUND_RADIUS:g} cm', ROUNDED))}
         files.append(plot_corners(out / 'corners.png', corners, tracks,
-                                  'Jerk-limited cycle: the tool at its corners, through them and rounded'))
+                                  'Jerk-limited cycle: the tool at its corners, through them and rounded',
+                                  caption='Each panel: the tool within 5 cm of a corner of the cycle, side on. "Through '
+                                          'the corners": blend, the joint moves meet the lines at P1, P3 and P4 at '
+                                          'speed; "rounded": they meet the lines blend_radius before. "P4 in" and "P4 out": '
+                                          'line into the box and the line out of it.'))
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
     files.append(mcap_path)
     decoded = _check_mcap(mcap_path)

@@ -75,7 +75,7 @@ def save_arc(arc, n_insert, out, stem='arc'):
         writer.writerow(['i', 'x', 'y', 'z'])
         writer.writerows([[i, *p] for i, p in enumerate(np.round(pts, 10).tolist())])
     png = plot_path_3d(out / f'{stem}.png', {'arc': dense}, pts,
-                       f'Arc through P1, P2, P3: {n_insert} insertion points, r = {arc.radius:.4g}',
+                       f'Arc through P1, P2, P3: {n_insert} insertion points between P1 and P3, r = {arc.radius:.4g}',
                        {'P1': arc.p1, 'P2': arc.p2, 'P3': arc.p3})
     return [out / f'{stem}_points.csv', png]
 
@@ -148,12 +148,13 @@ def run_paper(out, dt):
         f'N={n}: {d:.2e}' for n, d, _ in rows if n in (5, 47, 100, 1000)))
     via = trajectory.quintic_via(PAPER_VIA['points'], PAPER_VIA['durations'],
                                  PAPER_VIA['velocities'], PAPER_VIA['accelerations'])
-    files += save_profile(via, out, 'fig14_via_points', 'Sec. 3.1 D: X0 → Xf1 → Xf2 → X0, 2 s each', '', dt)
+    # The paper gives these wrist angles no unit; as its other joint examples, and at their size, degrees.
+    files += save_profile(via, out, 'fig14_via_points', 'Sec. 3.1 D: X0 → Xf1 → Xf2 → X0, 2 s each', 'deg', dt)
     lines.append(f'Sec. 3.1 D via points: {via.duration:g} s, sampled every {dt:g} s, '
                  'all boundary conditions met')
     vl = trajectory.via_lspb(np.array(PAPER_VIA['points'], float), PAPER_VIA['durations'], 400.0)
     files += save_profile(vl, out, 'fig12_via_lspb', 'Fig. 12: via-point LSPB through the Sec. 3.1 D points, '
-                          '400/s²', '', dt)
+                          '400°/s²', 'deg', dt)
     return lines, files
 
 
@@ -168,46 +169,56 @@ def _vector_list(values, name):
     return np.array(rows)
 
 
+#: The options picking-plan takes before or after its method (`picking-plan lspb ... --deg`).
+OPTIONS = {'paper': False, 'out': Path('out/plan'), 'dt': 0.01, 'deg': False, 'rad': False}
+
+
 def build_parser():
+    # (Given on both sides of the method; SUPPRESS keeps one side's value from hiding the other's.)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument('--paper', action='store_true', default=argparse.SUPPRESS,
+                        help='reproduce every example of the paper')
+    common.add_argument('--out', type=Path, default=argparse.SUPPRESS, help='output folder (default out/plan)')
+    common.add_argument('--dt', type=float, default=argparse.SUPPRESS, help='sample period, s (default 0.01)')
+    units = common.add_mutually_exclusive_group()
+    units.add_argument('--deg', action='store_true', default=argparse.SUPPRESS, help='joint values in degrees')
+    units.add_argument('--rad', action='store_true', default=argparse.SUPPRESS,
+                       help='joint values in radians (default)')
     parser = argparse.ArgumentParser(
-        prog='picking-plan', description=__doc__.split('\n\n')[0],
+        prog='picking-plan', description=__doc__.split('\n\n')[0], parents=[common],
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split('\n\n', 1)[1])
-    parser.add_argument('--paper', action='store_true', help="reproduce every example of the paper")
-    parser.add_argument('--out', type=Path, default=Path('out/plan'), help='output folder (default %(default)s)')
-    parser.add_argument('--dt', type=float, default=0.01, help='sample period, s (default %(default)s)')
-    units = parser.add_mutually_exclusive_group()
-    units.add_argument('--deg', action='store_true', help='joint values in degrees')
-    units.add_argument('--rad', action='store_true', help='joint values in radians (default)')
     sub = parser.add_subparsers(dest='method')
 
+    def add(name, **kw):
+        return sub.add_parser(name, parents=[common], **kw)
     for name in ('cubic', 'quintic'):
-        p = sub.add_parser(name, help=f'{name} polynomial move')
-        p.add_argument('--q0', type=float, nargs='+', required=True)
-        p.add_argument('--qf', type=float, nargs='+', required=True)
+        p = add(name, help=f'{name} polynomial move')
+        p.add_argument('--q0', type=float, nargs='+', required=True, help='start, one value per joint')
+        p.add_argument('--qf', type=float, nargs='+', required=True, help='end, one value per joint')
         p.add_argument('--duration', type=float, required=True, help='s')
-        p.add_argument('--v0', type=float, nargs='+', default=[0.0])
-        p.add_argument('--vf', type=float, nargs='+', default=[0.0])
-    p = sub.add_parser('lspb', help='linear segment with parabolic blends (Eq. 15-20)')
+        p.add_argument('--v0', type=float, nargs='+', default=None, help='start velocity per joint (default: rest)')
+        p.add_argument('--vf', type=float, nargs='+', default=None, help='end velocity per joint (default: rest)')
+    p = add('lspb', help='linear segment with parabolic blends (Eq. 15-20)')
     p.add_argument('--q0', type=float, nargs='+', required=True)
     p.add_argument('--qf', type=float, nargs='+', required=True)
     p.add_argument('--duration', type=float, required=True, help='s')
     p.add_argument('--accel', type=float, nargs='+', required=True, help='blend acceleration per s^2')
-    p = sub.add_parser('via-lspb', help='LSPB through via points (Fig. 12)')
+    p = add('via-lspb', help='LSPB through via points (Fig. 12)')
     p.add_argument('--points', nargs='+', required=True, help='via points, each q1,q2,...')
     p.add_argument('--durations', type=float, nargs='+', required=True, help='s per segment')
     p.add_argument('--accel', type=float, nargs='+', required=True)
-    p = sub.add_parser('quintic-via', help='quintics through via points (Sec. 3.1 D)')
+    p = add('quintic-via', help='quintics through via points (Sec. 3.1 D)')
     p.add_argument('--points', nargs='+', required=True, help='via points, each q1,q2,...')
     p.add_argument('--durations', type=float, nargs='+', required=True, help='s per segment')
     p.add_argument('--velocities', nargs='+', help='velocity at each via point, each v1,v2,...')
     p.add_argument('--accelerations', nargs='+', help='acceleration at each via point')
-    p = sub.add_parser('arc', help='spatial arc through three points (Sec. 2.3)')
+    p = add('arc', help='spatial arc through three points (Sec. 2.3)')
     for k in ('p1', 'p2', 'p3'):
         p.add_argument(f'--{k}', type=float, nargs=3, required=True, metavar=('X', 'Y', 'Z'))
     p.add_argument('--n', type=int, default=45, help='insertion points between p1 and p3')
     p.add_argument('--duration', type=float, default=2.0, help='traversal time, s')
     p.add_argument('--profile', choices=geometry.PROFILES, default='quintic')
-    p = sub.add_parser('workspace', help="plot the arm's reachable workspace (reach shell and limits)")
+    p = add('workspace', help="plot the arm's reachable workspace (reach shell and limits)")
     p.add_argument('--urdf', type=Path, default=None, help='arm model (default: config/picking_arm.urdf)')
     p.add_argument('--samples', type=int, default=20000, help='random configurations within the limits')
     return parser
@@ -231,7 +242,8 @@ def plan_from_args(args):
     """The trajectory the arguments ask for (angles converted to radians unless --deg)."""
     m = args.method
     if m in ('cubic', 'quintic'):
-        return getattr(trajectory, m)(args.q0, args.qf, args.duration, args.v0, args.vf)
+        rest = [0.0] * len(args.q0)                   # the default: from rest to rest, for any number of joints
+        return getattr(trajectory, m)(args.q0, args.qf, args.duration, args.v0 or rest, args.vf or rest)
     if m == 'lspb':
         return trajectory.lspb(args.q0, args.qf, args.duration, args.accel)
     points = _vector_list(args.points, '--points')
@@ -243,8 +255,30 @@ def plan_from_args(args):
     return trajectory.quintic_via(points, durations, vel, acc)
 
 
+def degrees_hint(args):
+    """A note when joint values given in radians look like degrees (beyond one turn)."""
+    if args.deg or args.method not in ('cubic', 'quintic', 'lspb', 'via-lspb', 'quintic-via'):
+        return None
+    given = [v for name in ('q0', 'qf') for v in (getattr(args, name, None) or [])]
+    for text in getattr(args, 'points', None) or []:
+        given += [float(x) for x in text.split(',') if x.strip()]
+    if given and max(abs(v) for v in given) > 2 * np.pi:
+        return (f'note: joint values are radians unless --deg; {max(given, key=abs):g} rad is more than a turn '
+                '(degrees? add --deg)')
+    return None
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    for name, default in OPTIONS.items():
+        if not hasattr(args, name):
+            setattr(args, name, default)
+    try:
+        hint = degrees_hint(args)
+    except ValueError:
+        hint = None
+    if hint:
+        print(hint, file=sys.stderr)
     if not args.paper and args.method is None:
         build_parser().error('give a method (cubic, quintic, lspb, via-lspb, quintic-via, arc) or --paper')
     if not (np.isfinite(args.dt) and args.dt > 0):
