@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 
 import pytest
@@ -30,6 +31,12 @@ def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
         assert (tmp_path / name).stat().st_size > 1000, name
     run = json.loads((tmp_path / 'run.json').read_text())
     assert run['ok'] and set(run['events']['exit_codes'].values()) == {0}
+    # Every Markdown table of the report has as many cells in every row as in its header (escaped pipes).
+    tables = re.findall(r'(?:^\|.*\|\n)+', (tmp_path / 'report.md').read_text(), re.M)
+    assert len(tables) >= 3
+    for table in tables:
+        widths = {len(re.split(r'(?<!\\)\|', row.strip())) for row in table.strip().splitlines()}
+        assert len(widths) == 1, table
 
 
 def test_a_failed_run_reports_why_and_leaves_no_earlier_report_behind(tmp_path):

@@ -20,7 +20,7 @@ from picking_planner.pick_cycle import PickSettings
 from picking_planner.resources import config_dir
 from picking_common.status import status_values
 from picking_sim.parameters import PARAMS as SIM
-from rosstack import RELIABLE, Client, ensure_rclpy, make_pose
+from rosstack import FINAL, RELIABLE, Client, ensure_rclpy, make_pose
 
 NODES = {'picking_sim': SIM, 'picking_controller': CONTROLLER, 'picking_planner': PLANNER}
 NS = '/conventions'
@@ -171,3 +171,19 @@ def test_goals_stamped_zero_get_ids_of_their_own(arm):
                     >= 2, 20.0, 'two goals answered')
     ids = {status_values(m).get('goal') for _, m in client.planner_status[mark['planner']:]}
     assert '0.000000000' not in ids and len(ids) >= 2, ids
+    # Each ends with a result under its own id (the reachable one reached, the other refused).
+    client.wait_for(lambda: {status_values(m).get('goal') for _, m in client.planner_status[mark['planner']:]
+                             if status_values(m).get('state') in FINAL} >= ids, 40.0, 'both goals to end')
+
+
+def test_a_second_node_of_the_same_name_is_reported(arm, tmp_path):
+    """Last in this module: a second planner in the arm's namespace says that two run (each would plan every goal)."""
+    from picking_planner.cli.stack import NodeProcess
+    second = NodeProcess('picking-planner', ['--ros-args', '-r', f'__ns:={NS}', '--params-file',
+                                             str(config_dir() / 'planner.yaml')], tmp_path / 'second.log')
+    try:
+        _, client, _ = arm
+        client.wait_for(lambda: 'nodes named /conventions/picking_planner run' in second.output(), 20.0,
+                        'the second planner to say so')
+    finally:
+        assert second.stop() == 0
