@@ -76,7 +76,9 @@ def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_
     it runs the missed steps along the commands when it wakes, the controller sees no path error,
     and the simulator reports the stall."""
     with running_stack('/sys6', tmp_path) as (stack, client):
-        client.set_planner_parameter('speed_scale', 1.0)
+        # A quintic move: at its peak speed only briefly (a jerk-limited one cruises at the limit, where a
+        # servo that catches up saturates at 1.2 times it and lags further).
+        client.set_planner_parameters({'speed_scale': 1.0, 'method': 'quintic'})
         reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
         mark = client.mark()
         client.send_pose([0.05, -0.55, 0.45])             # the waist turns about 1.7 rad
