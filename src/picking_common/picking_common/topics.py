@@ -48,8 +48,11 @@ class LatestMessage:
         self.reader = reader
         self.node = parent
         self.sub = parent.create_subscription(msg_type, topic, lambda msg: None, NEWEST, raw=reader is not None)
-        # rclpy's executor waits on every subscription in this list: out of it, this one is read here only.
+        # rclpy's executor waits on every subscription in this list, and on its QoS event handlers: out of
+        # both, this one is read here only (left in, its events kept an idle executor busy).
         parent._subscriptions.remove(self.sub)
+        for handler in self.sub.event_handlers:
+            parent.remove_waitable(handler)
         self.last = None
 
     def take(self):
@@ -75,5 +78,5 @@ class LatestMessage:
 
     def destroy(self):
         for handler in self.sub.event_handlers:
-            self.node.remove_waitable(handler)
+            handler.destroy()
         self.sub.destroy()
