@@ -102,3 +102,18 @@ def test_every_picking_goal_example_reaches_its_goal_on_a_running_arm(tmp_path):
     finally:
         codes = stack.stop()
     assert set(codes.values()) == {0}, codes
+
+
+def test_every_picking_stack_example_brings_the_arm_up_and_down(tmp_path):
+    """Each example of `picking-stack --help`, for 2 s once the arm is up (in this run's own domain)."""
+    found = examples(run('picking-stack', '--help').stdout, 'picking-stack')
+    assert len(found) >= 3
+    for line in found:
+        args = shlex.split(line)[1:]
+        if '--domain' in args:                      # this run's own domain, never another
+            args[args.index('--domain') + 1] = os.environ['ROS_DOMAIN_ID']
+        if '--for' in args:                         # our own duration instead
+            del args[args.index('--for'):args.index('--for') + 2]
+        done = run('picking-stack', *args, '--for', 2, '--log-dir', tmp_path, timeout=120)
+        assert done.returncode == 0, (line, done.stdout, done.stderr)
+        assert 'is up' in done.stdout and 'exit code 0' in done.stdout, done.stdout
