@@ -80,13 +80,18 @@ def carried_points(sent, t_from, t_until, period, names):
     if t_until - t_from < period / 2:
         return None
     starts = sorted({p.start for p in sent if t_from < p.start < t_until} | {t_from})
-    parts, before = [], None
+    parts, before, previous = [], None, None
     for lo, hi in zip(starts, starts[1:] + [t_until]):
         traj, t0, plan_names, _ = plan_active(sent, lo)
         try:
             cols = [plan_names.index(n) for n in names]
         except ValueError:
             return None
+        if previous is not None and _apart(previous(lo), traj.state_at(lo - t0), cols):
+            # This plan does not start where the one before it is then (that one was refused, and the plan it
+            # carried on from is gone): carry from here; joining the two would put a jump between two points.
+            parts, before = [], None
+        previous = (lambda tr, o, c: lambda t: tuple(x[c] for x in tr.state_at(t - o)))(traj, t0, cols)
         if before is not None:           # the acceleration the plan before ended with, for the joints carried
             before, given = one_sided(traj, np.array([lo - t0]), after=True)[2][0], before
             before[cols] = given
@@ -96,6 +101,11 @@ def carried_points(sent, t_from, t_until, period, names):
     if not parts:
         return None
     return tuple(np.concatenate(x) for x in zip(*parts))
+
+
+def _apart(state, other, cols, tol=1e-6):
+    """True when ``state`` (q, qd of the joints carried) is not ``other``'s (a plan's state, columns ``cols``)."""
+    return any(np.abs(a - b[cols]).max() > tol for a, b in zip(state[:2], other[:2]))
 
 
 def predict_reference(q, qd, qdd, dt):
