@@ -87,11 +87,12 @@ def carried_points(sent, t_from, t_until, period, names):
             cols = [plan_names.index(n) for n in names]
         except ValueError:
             return None
-        if previous is not None and _apart(previous(lo), traj.state_at(lo - t0), cols):
+        if previous is not None and _apart(previous[0].state_at(lo - previous[1]), previous[2],
+                                           traj.state_at(lo - t0), cols):
             # This plan does not start where the one before it is then (that one was refused, and the plan it
             # carried on from is gone): carry from here; joining the two would put a jump between two points.
             parts, before = [], None
-        previous = (lambda tr, o, c: lambda t: tuple(x[c] for x in tr.state_at(t - o)))(traj, t0, cols)
+        previous = (traj, t0, cols)
         if before is not None:           # the acceleration the plan before ended with, for the joints carried
             before, given = one_sided(traj, np.array([lo - t0]), after=True)[2][0], before
             before[cols] = given
@@ -103,9 +104,9 @@ def carried_points(sent, t_from, t_until, period, names):
     return tuple(np.concatenate(x) for x in zip(*parts))
 
 
-def _apart(state, other, cols, tol=1e-6):
-    """True when ``state`` (q, qd of the joints carried) is not ``other``'s (a plan's state, columns ``cols``)."""
-    return any(np.abs(a - b[cols]).max() > tol for a, b in zip(state[:2], other[:2]))
+def _apart(state, cols, other, other_cols, tol=1e-6):
+    """True when two plans' states (columns ``cols`` and ``other_cols``: the joints carried) differ in q or qd."""
+    return any(np.abs(a[cols] - b[other_cols]).max() > tol for a, b in zip(state[:2], other[:2]))
 
 
 def predict_reference(q, qd, qdd, dt):
