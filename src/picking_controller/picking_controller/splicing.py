@@ -155,7 +155,7 @@ class Splicing:
         if not self.feedback_ok:
             raise ValueError('feedback lost: no joint_states; refusing to move blind')
         order = self._order(joint_names)
-        ref = self._commanded(*self._reference_at(now))
+        ref = self._commanded(*self._reference_at(now, scheduled=False))
         held = ref[0]
         times = np.asarray(times, float)
         m = times.size
@@ -224,14 +224,11 @@ class Splicing:
 
     def _carries_on(self, now, rel, pos, vel, acc):
         """True when a trajectory's first point, due later than the shortest lead-in, is the state
-        (position, velocity and acceleration) the reference will have then, with no other
-        trajectory due to take over before it."""
+        (position, velocity and acceleration) the active trajectory's reference will have then."""
         if vel is None or acc is None or rel[0] <= MIN_LEAD:
             return False
         t = now + float(rel[0])
-        if self.next is not None and self.next.t_splice <= t:
-            return False
-        _, _, ref_qdd = self._commanded(*self._reference_at(t))
+        _, _, ref_qdd = self._commanded(*self._reference_at(t, scheduled=False))
         return (not self._starts_elsewhere(t, pos[0], vel[0])
                 and bool(np.abs(ref_qdd - acc[0]).max() <= 1e-6 * (1.0 + np.abs(acc[0]).max())))
 
@@ -253,7 +250,7 @@ class Splicing:
 
     def _starts_elsewhere(self, t, q, qd, tol=1e-6):
         """True when the reference at clock time ``t`` is not at ``q`` (moving at ``qd``, if given)."""
-        ref_q, ref_qd, _ = self._commanded(*self._reference_at(t))
+        ref_q, ref_qd, _ = self._commanded(*self._reference_at(t, scheduled=False))
         return bool(np.abs(ref_q - q).max() > tol or (qd is not None and np.abs(ref_qd - qd).max() > tol))
 
     def _commanded(self, q, qd, qdd):
@@ -263,9 +260,11 @@ class Splicing:
         A joint at a position limit stops there; one at its speed limit stops accelerating past it."""
         return held_within_limits(q, qd, qdd, self.lower, self.upper, self.max_velocity, self.max_acceleration)
 
-    def _reference_at(self, t):
-        """The reference at clock time ``t`` as things stand (a scheduled trajectory
-        included), without switching to it."""
-        traj, t0 = (self.next.traj, self.next.t_splice) if self.next and t >= self.next.t_splice \
+    def _reference_at(self, t, scheduled=True):
+        """The reference at clock time ``t`` as things stand, without switching: with the trajectory
+        scheduled to take over (``scheduled``), or of the active one alone. A new trajectory is spliced
+        onto the active one: committed, it replaces the scheduled one, which then never runs (spliced
+        onto that one, it took over with a jump from where the active one really was)."""
+        traj, t0 = (self.next.traj, self.next.t_splice) if scheduled and self.next and t >= self.next.t_splice \
             else (self.traj, self.t0)
         return traj.state_at(max(t - t0, traj.start_time))

@@ -67,6 +67,29 @@ def test_a_prepared_trajectory_takes_over_at_its_splice_time_without_a_jump():
     assert c.traj is prepared.traj and c.t0 == pytest.approx(1.02)
 
 
+def test_a_trajectory_that_replaces_a_scheduled_one_splices_onto_the_reference_that_runs():
+    """A trajectory scheduled for 1.05 s is replaced, before then, by one that takes over at 1.1 s: the
+    first never runs, so the second leads in from the trajectory that does (spliced onto the
+    scheduled one, it jumped)."""
+    c = core()
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
+    first = c.prepare(['a', 'b'], [0.6], [[0.3, 0.4]], [[0.0, 0.0]], [], 0.0, now=1.0, splice_delay=0.05)
+    assert c.commit(first, now=1.0).level == 'OK'
+    second = c.prepare(['a', 'b'], [0.8], [[1.0, -0.2]], [[0.0, 0.0]], [], 0.0, now=1.0, splice_delay=0.1)
+    assert c.commit(second, now=1.01).level == 'OK'
+    reports, sent = [], []
+    for now in np.arange(0.0, 1.0, 1e-3):
+        c.command(now)
+    for now in np.arange(1.0, 1.7, 1e-3):
+        (q, qd, _), events = c.command(now)
+        sent.append((q, qd))
+        reports += events
+    assert c.traj is second.traj
+    assert not [e for e in reports if 'command limited' in e.message], [e.message for e in reports]
+    q = np.array([s[0] for s in sent])
+    assert np.abs(np.diff(q, axis=0)).max() < 2.0 * 1e-3       # no step beyond the speed limit's per tick
+
+
 def test_a_prepared_trajectory_is_refused_when_the_state_changed_or_it_came_too_late():
     c = core(path=0.05)
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
