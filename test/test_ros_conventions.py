@@ -125,6 +125,9 @@ def test_the_shipped_files_hold_declared_parameters_only_and_the_gripper_is_one(
     assert [v.double_value for v in got.values] == [0.09, 0.055]
     # A key the planner does not have is reported at start.
     assert 'unknown parameters given for this node, ignored: grasp_tme' in stack.planner.output()
+    # ... and only that key: the other nodes, started from the shipped files, know every key given to them.
+    for node in (stack.sim, stack.controller):
+        assert 'unknown parameters' not in node.output(), node.output()
 
 
 def test_diagnostics_name_each_nodes_health_and_the_arm(arm):

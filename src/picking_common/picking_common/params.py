@@ -45,12 +45,14 @@ def descriptor(param):
     return out
 
 
-def declare(node, params):
+def declare(node, params, check_unknown=True, others=()):
     """Declare ``params`` on ``node`` with their descriptors; returns their values by name.
 
     A value out of range or of the wrong type (given with -p or a params file) raises ValueError
-    with the parameter's name. Keys given for this node that no parameter has are reported as a
-    warning: a mistyped key would otherwise be ignored without a word.
+    with the parameter's name. Keys given for this node that neither ``params`` nor ``others``
+    (declared by an earlier call) name are reported as a warning, unless ``check_unknown`` is
+    False (more parameters are declared after this call): a mistyped key would otherwise be
+    ignored without a word.
     """
     from rclpy.exceptions import ParameterException
     values = {}
@@ -59,12 +61,14 @@ def declare(node, params):
             values[p.name] = node.declare_parameter(p.name, p.default, descriptor(p)).value
         except (ParameterException, TypeError) as exc:
             raise ValueError(f'parameter {p.name}: {exc}') from None
-    known = {p.name for p in params} | set(_ROS_OWN)
+    if not check_unknown:
+        return values
+    known = {p.name for p in params} | set(others) | set(_ROS_OWN)
     unknown = sorted(n for n in getattr(node, '_parameter_overrides', {})
                      if n not in known and not n.startswith('qos_overrides.'))
     if unknown:
         node.get_logger().warning(f'unknown parameters given for this node, ignored: {", ".join(unknown)} '
-                                  f'(its parameters: {", ".join(p.name for p in params)})')
+                                  f'(its parameters: {", ".join([*others, *(p.name for p in params)])})')
     return values
 
 

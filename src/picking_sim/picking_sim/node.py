@@ -95,13 +95,13 @@ class SimNode(Node):
     def _declare_parameters(self):
         """Every parameter with its descriptor; ``initial_positions`` defaults to the pick cycle's home
         with the gripper open, for an arm with those joints (else every joint at 0, within its limits)."""
-        out = declare(self, [p for p in PARAMS if p.name != 'initial_positions'])
+        out = declare(self, [p for p in PARAMS if p.name != 'initial_positions'], check_unknown=False)
         arm = ArmModel.from_urdf(out['urdf_path'] or default_urdf())
         start = next(p for p in PARAMS if p.name == 'initial_positions')
         if len(start.default) != len(arm.all_joint_names):
             lower, upper, _, _ = arm.all_limits
             start = dataclasses.replace(start, default=np.clip(np.zeros(len(arm.all_joint_names)), lower, upper).tolist())
-        out.update(declare(self, [start]))
+        out.update(declare(self, [start], others=list(out)))
         self.add_on_set_parameters_callback(self._on_parameters)
         return out, arm
 
