@@ -205,8 +205,12 @@ class PickCycle:
         P4[2, 3] += s.box_drop_height
         return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
 
-    def plan(self, start, T_apple, gripper_start=None):
+    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True):
         """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
+
+        A harvest chains cycles (:mod:`picking_planner.harvest`): ``from_box`` starts at rest in the
+        box, where the cycle before ended, and rises straight out of it into the approach instead
+        of going home first; ``home_after=False`` ends at rest in the box after the release.
 
         Raises Unreachable naming the knot point that cannot be reached.
         """
@@ -238,11 +242,14 @@ class PickCycle:
             if path is not None:
                 cart.append((len(parts) - 1, path))
 
-        stop, q_rest = pl.come_to_rest(start)
-        if stop is not None:
-            add('brake', 'quintic', stop)
-        if np.abs(q_rest - home).max() > 1e-4:
-            add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
+        if from_box:
+            _, _, rise_line = self._out_of_the_box(start)
+        else:
+            stop, q_rest = pl.come_to_rest(start)
+            if stop is not None:
+                add('brake', 'quintic', stop)
+            if np.abs(q_rest - home).max() > 1e-4:
+                add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
         speeds = BLEND_SPEEDS if s.blend else (0.0,)
 
         def blend_state(traj, at_end):
@@ -251,10 +258,14 @@ class PickCycle:
                 return None
             return (traj.end_state() if at_end else traj.start_state())[1:]
 
-        def approach(line):
-            """Home -> the start of the line to the apple."""
+        def approach(line, rise=None):
+            """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple."""
             vf, af = blend_state(line, False) or (None, None)
-            return pl.joint_move(home, line.start_state()[0], joint_method, vf=vf, af=af)
+            if rise is None:
+                return pl.joint_move(home, line.start_state()[0], joint_method, vf=vf, af=af)
+            v0, a0 = blend_state(rise, True) or (None, None)
+            return pl.joint_move(rise.end_state()[0], line.start_state()[0], joint_method, v0=v0, a0=a0,
+                                 vf=vf, af=af)
 
         def transfer(lift, into_box=None):
             """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
@@ -265,19 +276,22 @@ class PickCycle:
             return pl.via(np.array([q_lift, self._clearance(corner, q['P4']), q_box]), s.transfer_method,
                            blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
-        def home_from(rise):
-            """The end of the line out of the box -> home."""
-            v0, a0 = blend_state(rise, True)
-            return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
-
         # With a blend radius the joint moves meet the lines that far from P1, P3 and P4: the
         # lines are that much shorter, and the corners are rounded by the joint moves.
         r = s.blend_radius
         q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
         q4 = q['P4'] if r == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r, q['P4'])
         # P1: the approach ends where (and as fast as) the line to the apple starts.
-        moved, (traj, path) = self._quickest(
-            speeds, lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest), approach)
+        to_apple = lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest)  # noqa: E731
+        if from_box:
+            # The line to the apple as for an approach from the top of the box at rest; then the
+            # speed out of the box for that line.
+            at_rest = rise_line(0.0, None)[0]
+            _, (traj, path) = self._quickest(speeds, to_apple, lambda line: approach(line, at_rest))
+            moved, (rise, rise_path) = self._quickest(speeds, rise_line, lambda r: approach(traj, r))
+            add('P4 out of the box', 'line', rise, rise_path)
+        else:
+            moved, (traj, path) = self._quickest(speeds, to_apple, approach)
         add('P1 approach', joint_method, moved)
         add('P2 to the apple', 'line', traj, path)
         q_apple = traj.end_state()[0]
@@ -298,19 +312,55 @@ class PickCycle:
         add('P5 into the box', 'line', traj, path)
         q_box = traj.end_state()[0]
         add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
-        if s.blend:
-            # Straight up out of the box (the way in, reversed), flowing into the move home.
-            moved, (traj, path) = self._quickest(
-                speeds, lambda f, rest: pl.line(q_box, arm.fk(q_box), arm.fk(q4), (0.0, f), rest), home_from)
-            add('P4 out of the box', 'line', traj, path)
-            add('P0 back home', s.transfer_method, moved)
-        else:
-            add('P0 back home', s.transfer_method, pl.via(np.array([q_box, q['P4'], home]), s.transfer_method))
+        if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
+            for part in self._home_from_box((q_box, 0.0 * q_box, 0.0 * q_box)):
+                add(*part)
+        return self._with_gripper(parts, cart, gripper_start)
 
-        plan = pl.join(parts, 'pick', cart)
+    def back_home(self, start, gripper_start=None):
+        """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper."""
+        parts = self._home_from_box(start)
+        cart = [(k, part[3]) for k, part in enumerate(parts) if part[3] is not None]
+        return self._with_gripper([part[:3] for part in parts], cart, gripper_start)
+
+    def _with_gripper(self, parts, cart, gripper_start):
+        """The Plan of the parts ``(label, method, traj)``, the gripper's opening as its last joint."""
+        plan = self.planner.join(parts, 'pick', cart)
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
-        return Plan(whole, 'pick', plan.segments, plan.cartesian, arm.joint_names + ('gripper_joint',), events)
+        return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + ('gripper_joint',), events)
+
+    def _home_from_box(self, start):
+        """``(label, method, traj, path)`` of each part from rest in the box back home: straight up out of
+        the box (the way in, reversed), flowing into the move home, or (without blends) through P4."""
+        pl, s = self.planner, self.s
+        home = np.asarray(s.home_positions, float)
+        q_box, q_top, rise_line = self._out_of_the_box(start)
+        if not s.blend:
+            return [('P0 back home', s.transfer_method, pl.via(np.array([q_box, q_top, home]), s.transfer_method),
+                     None)]
+
+        def home_from(rise):
+            v0, a0 = rise.end_state()[1:]
+            return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
+        moved, (traj, path) = self._quickest(BLEND_SPEEDS, rise_line, home_from)
+        return [('P4 out of the box', 'line', traj, path), ('P0 back home', s.transfer_method, moved, None)]
+
+    def _out_of_the_box(self, start):
+        """``(q, q_top, rise_line)`` for a motion that starts at rest in the box: the joints there, at
+        the height of P4 (less the blend radius) straight above, and ``rise_line(f, rest)``, the line
+        up to there, left at speed fraction ``f``."""
+        q, qd, qdd = (np.asarray(x, float) for x in self.planner.check_start(start))
+        if np.abs(qd).max() > 1e-9 or np.abs(qdd).max() > 1e-9:
+            raise ValueError('a cycle from the box starts at rest there (where the cycle before it ended)')
+        T_box = self.arm.fk(q)
+        T_top = T_box.copy()
+        T_top[2, 3] += self.s.box_drop_height - self.s.blend_radius
+        try:
+            q_top = self.arm.check_reachable(T_top, seed=q)
+        except Unreachable as exc:
+            raise Unreachable(f'P4 (above the box), rising out of it: {exc}') from None
+        return q, q_top, lambda f, rest: self.planner.line(q, T_box, self.arm.fk(q_top), (0.0, f), rest)
 
     @staticmethod
     def _quickest(speeds, cartesian, joint):

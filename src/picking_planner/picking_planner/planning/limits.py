@@ -98,6 +98,18 @@ class Limits:
                 t = np.maximum(t, np.cbrt(60.0 * h / self._jmax))
         return np.maximum(t.max(axis=1), self.settings.sample_period)
 
+    def move_times(self, q_from, q_to):
+        """Estimated times of the rest-to-rest moves from every configuration of ``q_from`` (m, n) to
+        every one of ``q_to`` (k, n), s, shape (m, k): each joint's trapezoid at the scaled limits,
+        plus the time its jerk limit takes to build the acceleration up; the slowest joint's. For
+        choosing among many moves (a harvest's order), not for timing one: it plans nothing."""
+        h = np.abs(np.asarray(q_to, float)[None, :, :] - np.asarray(q_from, float)[:, None, :])
+        v, a = self._vmax, self._amax
+        t = np.where(h > v**2 / a, h / v + v / a, 2.0 * np.sqrt(h / a))
+        if self.settings.limit_jerk:
+            t = np.where(h > 0.0, t + a / self._jmax, 0.0)
+        return t.max(axis=2)
+
     def _check(self, traj, label):
         t = _check_times(traj)
         q, qd, qdd = traj.sample(t)

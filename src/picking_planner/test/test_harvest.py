@@ -1,0 +1,137 @@
+"""A tree's harvest: the order, the chained cycles, skips, a replaced queue."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from picking_planner.harvest import Harvest, best_order, route_cost, synthetic_tree
+from picking_planner.kinematics import pose_matrix
+from picking_planner.kinematics.paths import check_joint_limits
+from picking_planner.pick_cycle import PickCycle, PickSettings
+from picking_planner.planning import Planner, PlannerSettings
+
+
+@pytest.fixture(scope='module')
+def harvest(arm):
+    """The shipped settings: jerk-limited, blended, corners rounded."""
+    planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
+                                           limit_jerk=True, cartesian_profile='optimal'))
+    settings = PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
+                            blend_radius=0.02).validate(arm)
+    return Harvest(PickCycle(planner, settings))
+
+
+@pytest.fixture(scope='module')
+def home(harvest):
+    z = np.zeros(harvest.arm.dof)
+    return harvest.home, z, z
+
+
+@pytest.fixture(scope='module')
+def five(harvest, home):
+    apples = synthetic_tree(5, seed=4)
+    return apples, harvest.plan(home, apples)
+
+
+@pytest.mark.parametrize('seed', range(20))
+def test_the_order_is_never_worse_than_the_given_one_and_finds_the_best_of_a_small_tree(seed):
+    rng = np.random.default_rng(seed)
+    n = 6
+    first, between, last = rng.uniform(0.5, 2, n), rng.uniform(0.5, 2, (n, n)), rng.uniform(0.5, 2, n)
+    route = best_order(first, between, last)
+    assert sorted(route) == list(range(n))
+    cost = route_cost(route, first, between, last)
+    assert cost <= route_cost(range(n), first, between, last)
+    best = min(route_cost(r, first, between, last) for r in itertools.permutations(range(n)))
+    assert cost == pytest.approx(best)
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_the_order_of_a_large_tree_beats_the_given_one_fast(seed):
+    """30 apples on a plane, costs their distances (a metric, as move times are): the local search's
+    route is never worse than the given order, and far better than a shuffled one."""
+    p = np.random.default_rng(seed).uniform(0, 1, (30, 2))
+    between = np.linalg.norm(p[:, None] - p[None], axis=2)
+    to = np.linalg.norm(p, axis=1)
+    route = best_order(to, between, to)
+    assert sorted(route) == list(range(30))
+    assert route_cost(route, to, between, to) < 0.5 * route_cost(range(30), to, between, to)
+
+
+def test_apples_that_line_up_are_visited_in_line():
+    """Apples on a line, costs their distances, given shuffled, the start at one end: visited from
+    there to the other end."""
+    x = np.array([3.0, 0.0, 4.0, 1.0, 2.0])
+    between = np.abs(x[:, None] - x[None, :])
+    route = best_order(np.abs(x), between, np.zeros(5))
+    assert [x[k] for k in route] == [0, 1, 2, 3, 4]
+
+
+def test_a_harvest_goes_box_to_next_apple_and_home_after_the_last_within_every_limit(harvest, home, five):
+    apples, hp = five
+    plan = hp.plan
+    assert len(hp.apples) == 5 and not hp.skipped
+    assert sorted(a.index for a in hp.apples) == list(range(5))
+    labels = [s.label for s in plan.segments]
+    # Home once at the start (already there) and once after the last apple; between apples, out of the box.
+    assert sum('back home' in label for label in labels) == 1 and labels[-1] == 'home: P0 back home'
+    assert sum('P4 out of the box' in label for label in labels) == 5          # 4 to the next apple, 1 home
+    assert sum(label.endswith(': grasp') for label in labels) == 5
+    for a, b in zip(hp.apples, hp.apples[1:]):
+        assert b.start == pytest.approx(a.end)
+    # One continuous motion within the limits: sampled finely, and exactly across every break.
+    t = np.union1d(np.arange(0.0, plan.duration, 0.002), plan.trajectory.breaks)
+    q, qd, qdd = plan.trajectory.sample(t)
+    check_joint_limits(harvest.arm, t, q[:, :6], qd[:, :6], qdd[:, :6], slack=1e-6)
+    for b in plan.trajectory.breaks[1:-1]:
+        before, after = plan.trajectory.state_at(b - 1e-9), plan.trajectory.state_at(b + 1e-9)
+        for x, y, tol in zip(before, after, (1e-6, 1e-5, 1e-2)):
+            assert np.abs(x - y).max() < tol, b
+    end = plan.trajectory.end_state()
+    assert end[0][:6] == pytest.approx(home[0], abs=1e-6) and np.abs(end[1]).max() < 1e-9
+    # Each apple is in the box (the tool at the drop point, at rest, gripper open) when its time ends.
+    for a in hp.apples:
+        q_end, qd_end, _ = plan.trajectory.state_at(a.end)
+        assert np.linalg.norm(harvest.arm.fk(q_end[:6])[:3, 3] - harvest.cycle.s.box_position) < 1e-3
+        assert np.abs(qd_end).max() < 1e-6 and q_end[6] == pytest.approx(harvest.cycle.s.gripper_open)
+
+
+def test_the_planned_order_is_no_slower_than_the_given_one(harvest, home, five):
+    apples, hp = five
+    naive = harvest.plan(home, apples, ordered=False)
+    assert [a.index for a in naive.apples] == list(range(5))
+    assert hp.ordered <= hp.given + 1e-9
+    assert hp.plan.duration <= naive.plan.duration * 1.02          # (planned moves, not the estimates)
+
+
+def test_an_apple_out_of_reach_is_skipped_with_its_reason_and_the_rest_are_picked(harvest, home):
+    apples = synthetic_tree(3, seed=1)
+    apples.insert(1, pose_matrix([2.5, 0.0, 0.6], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)]))
+    hp = harvest.plan(home, apples)
+    assert [s.index for s in hp.skipped] == [1] and 'unreachable' in hp.skipped[0].reason
+    assert sorted(a.index for a in hp.apples) == [0, 2, 3]
+    with pytest.raises(ValueError, match='no apple can be picked .*apple 0: unreachable'):
+        harvest.plan(home, apples[1:2])
+
+
+def test_a_harvest_that_replaces_another_starts_from_the_box_after_the_apple_in_hand(harvest, five):
+    """The state after the first apple's release (at rest in the box): the new harvest rises out of the
+    box to its first apple, without going home."""
+    apples, hp = five
+    q, qd, qdd = hp.plan.trajectory.state_at(hp.apples[0].end)
+    start = (q[:6], qd[:6], qdd[:6])
+    assert harvest.in_box(start) and not harvest.in_box((harvest.home, qd[:6], qdd[:6]))
+    again = harvest.plan(start, synthetic_tree(2, seed=9), gripper_start=q[6])
+    assert again.plan.segments[0].label.endswith('P4 out of the box')
+    assert again.plan.trajectory.start_state()[0][:6] == pytest.approx(q[:6], abs=1e-9)
+
+
+def test_a_synthetic_tree_is_seeded_and_spaced():
+    a, b = synthetic_tree(30, seed=3), synthetic_tree(30, seed=3)
+    assert np.array_equal(np.array(a), np.array(b))
+    p = np.array([T[:3, 3] for T in a])
+    d = np.linalg.norm(p[:, None] - p[None], axis=2) + np.eye(30)
+    assert d.min() >= 0.08
+    with pytest.raises(ValueError, match='do not fit'):
+        synthetic_tree(500, seed=0)
