@@ -341,3 +341,23 @@ def test_a_move_to_where_the_arm_already_rests_is_a_short_hold():
     traj = trajectory.time_optimal(q, q, [1.0] * 3, [2.0] * 3, [20.0] * 3)
     assert traj.duration > 0.0 and traj.end_state()[0] == pytest.approx(q)
     assert np.all(traj.sample(np.linspace(0.0, traj.duration, 5))[1] == 0.0)
+
+
+def test_a_move_of_a_few_milliseconds_keeps_the_jerk_limit_with_its_end_made_exact():
+    """A goal flood's plan from a plan a millisecond old: Ruckig ends 9 nrad short of the target, and
+    the smoothstep that makes the end exact (60 e / T^3 of jerk over 7 ms) took the move, already at
+    its jerk limit, 2.5 % beyond it; the planner refused the goal. Planned again with room for it."""
+    q0 = [-0.0831412146948904, 0.5729196263499449, 1.4594553353786672, 3.141592653589793, -1.1092177319794663,
+          -0.08314119750133962]
+    v0 = [4.276682382636206e-05, -4.276682382636187e-05, 5.702243176848282e-05, 0.0, -8.553364765272394e-05,
+          8.553364765272423e-05]
+    a0 = [0.07091811109991704, -0.07091811109991696, 0.09455748146655617, 0.0, -0.1418362221998338,
+          0.14183622219983416]
+    qf = [-0.08314123188844123, 0.5729196435434957, 1.459455312453933, 3.141592653589793, -1.1092176975923647,
+          -0.08314123188844125]
+    vmax, amax = np.array([1.96, 1.96, 2.45, 2.94, 2.94, 2.94]), np.array([5.88, 5.88, 7.84, 11.76, 11.76, 11.76])
+    jmax = np.array([58.8, 58.8, 78.4, 117.6, 117.6, 117.6])
+    move = trajectory.time_optimal(q0, qf, vmax, amax, jmax, v0, a0)
+    assert move.duration < 0.01 and move.end_state()[0] == pytest.approx(qf, abs=1e-15)
+    t = np.union1d(np.linspace(0.0, move.duration, 2001), move.breaks)
+    assert np.all(np.abs(move.jerk(t)) <= jmax * (1 + 1e-9))
