@@ -15,7 +15,7 @@ from rosstack import BIN
 ROOT = Path(__file__).resolve().parents[1]
 TOOLS = ('picking-stack', 'picking-goal', 'picking-plan', 'picking-demo', 'picking-sim', 'picking-controller',
          'picking-planner')
-SUBCOMMANDS = [('picking-goal', s) for s in ('pose', 'pick', 'path', 'stop')] + \
+SUBCOMMANDS = [('picking-goal', s) for s in ('pose', 'pick', 'path', 'harvest', 'stop')] + \
     [('picking-plan', s) for s in ('cubic', 'quintic', 'lspb', 'via-lspb', 'quintic-via', 'arc', 'workspace')]
 
 
@@ -41,6 +41,7 @@ def test_each_subcommand_has_help(tool, sub):
                                   ('picking-goal', 'pose', 0.6, 0.1), ('picking-goal', 'path'),
                                   ('picking-goal', 'pose', 0.6, 0.1, 0.4, '--method', 'spline'),
                                   ('picking-plan', 'lspb', '--q0', 15), ('picking-plan', 'cubic'),
+                                  ('picking-goal', 'harvest'), ('picking-goal', 'harvest', '--tree', 0),
                                   ('picking-sim', 'extra'), ('picking-stack', '--domain', 999)])
 def test_missing_or_bad_arguments_exit_2_with_the_usage(args):
     done = run(*args)
@@ -98,7 +99,9 @@ def test_every_picking_goal_example_reaches_its_goal_on_a_running_arm(tmp_path):
             done = run(*shlex.split(line), '--ros-args', '-r', '__ns:=/cli', timeout=120)
             assert done.returncode == 0, (line, done.stdout, done.stderr)
             if 'stop' not in line:
-                assert 'succeeded' in done.stdout and re.search(r'goal [0-9a-f]{32}', done.stdout), done.stdout
+                # (An action goal's id is its UUID; a harvest, a topic goal, is named by its stamp.)
+                assert 'succeeded' in done.stdout and re.search(r'goal ([0-9a-f]{32}|\d+\.\d{9})', done.stdout), \
+                    done.stdout
     finally:
         codes = stack.stop()
     assert set(codes.values()) == {0}, codes

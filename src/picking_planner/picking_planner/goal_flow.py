@@ -25,11 +25,13 @@ from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
 from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
+from .harvest import Harvest, HarvestGoal, HarvestRun
 from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
 from .pick_cycle import PickCycle
 from .planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS
+from .resources import GRIPPER_JOINT
 from .trajectory import waypoints
 
 RESULTS = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}
@@ -92,16 +94,46 @@ class GoalFlow:
         pose = msg_pose(target.pose)
         return lambda start, gripper: PickCycle(self.planner, self.pick).plan(start, pose, gripper_start=gripper)
 
+    def _plan_harvest(self, targets):
+        self._check_frame(targets.header)
+        if not targets.poses:
+            raise ValueError('the harvest has no apples (an empty PoseArray)')
+        return HarvestGoal(Harvest(PickCycle(self.planner, self.pick)), [msg_pose(p) for p in targets.poses])
+
+    def _after_apple_in_hand(self, t):
+        """A harvest replacing the running one starts when its apple in hand is in the box."""
+        newest = next(reversed(self._harvests.values()), None)
+        return t if newest is None else newest.after_apple_in_hand(t)
+
+    def _harvest_progress(self):
+        """Each apple of a running harvest reported once it is in the box."""
+        now = self._ros_now()
+        for key, run in self._harvests.items():
+            for k, apple in run.newly_picked(now):
+                self._publish_apple(key, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})',
+                                    picked=k, at=apple.end)
+
+    def _publish_apple(self, key, index, word, words, **values):
+        state = 'executing' if word == 'picked' else 'planned'
+        self.pub_status.publish(status('picking_planner', Level.OK if word == 'picked' else Level.WARN,
+                                       f'harvest goal {key}: apple {index} {word}: {words}', goal=key,
+                                       kind='harvest', state=state, apple=index, apple_state=word, **values))
+
     # -- goals from the topics -----------------------------------------------------------
     # A goal's id is its header stamp (a sender that hears no answer sends the same goal again, and
     # is answered again) or, stamped zero as `ros2 topic pub` sends it, an id of its own.
     def _take(self, sub, msg, kind, plan):
         """The newest goal waiting on ``sub`` (every older one answered as superseded), planned with
         ``plan(msg)`` unless it is a resend of a goal already taken."""
-        msg = newest_waiting(sub, msg, lambda old: self._end_waiting(kind, goal_id(old.header),
-                                                                     stamp_key(old.header.stamp)))
+        older = []
+        msg = newest_waiting(sub, msg, older.append)
         key, stamp = goal_id(msg.header), stamp_key(msg.header.stamp)
-        repeat, answer = self.policy.repeat(key, serialize_message(msg), self._now())
+        data = serialize_message(msg)
+        for old in older:
+            # (The same goal sent again while the planner was busy is that goal, not an older one.)
+            if stamp == ZERO_KEY or stamp_key(old.header.stamp) != stamp or serialize_message(old) != data:
+                self._end_waiting(kind, goal_id(old.header), stamp_key(old.header.stamp))
+        repeat, answer = self.policy.repeat(key, data, self._now())
         if repeat:
             if answer is not None:            # (None: it is still in flight)
                 self.pub_status.publish(answer)
@@ -122,6 +154,9 @@ class GoalFlow:
 
     def _on_pick_target(self, msg):
         self._take(self.sub_pick, msg, 'pick', self._plan_pick)
+
+    def _on_harvest_targets(self, msg):
+        self._take(self.sub_harvest, msg, 'harvest', self._plan_harvest)
 
     # -- goals from the actions ----------------------------------------------------------
     async def _execute(self, kind, plan, handle):
@@ -179,8 +214,14 @@ class GoalFlow:
         level = {Outcome.SUCCEEDED: Level.OK, Outcome.SUPERSEDED: Level.WARN, Outcome.CANCELED: Level.WARN}.get(
             outcome, Level.ERROR)
         text = f'{goal.kind} goal {outcome.word}: {ending.message}'
+        harvest = {}
+        run = self._harvests.pop(goal.key, None) if goal.kind == 'harvest' else None
+        if run is not None:
+            finished = outcome == Outcome.SUCCEEDED
+            text += f' ({run.words(self._ros_now(), finished)})'
+            harvest = run.summary(self._ros_now(), finished)
         self._answer(goal.key, status('picking_planner', level, text, goal=goal.key, kind=goal.kind,
-                                      state=outcome.word, controller_error_code=ending.code, **_stamp(goal)))
+                                      state=outcome.word, controller_error_code=ending.code, **_stamp(goal), **harvest))
         if outcome == Outcome.SUPERSEDED:
             self._superseded += 1
             if self._now() - self._superseded_logged > 1.0:
@@ -244,9 +285,17 @@ class GoalFlow:
             delay = policy.delay(goal) + (2.0 * self.lifecycle.latency if goal.attempt else 0.0)
             ref = self._reference()
             for _ in range(4):
-                start = policy.start_state(self._ros_now() + delay, ref, measured[0])
-                plan = goal.plan(start.state, measured[1])
+                t_start = self._ros_now() + delay
+                start = policy.start_state(self._after_apple_in_hand(t_start) if kind == 'harvest' else t_start,
+                                           ref, measured[0])
+                # The gripper as the plan running then leaves it (the reference carries the arm's joints only).
+                gripper = policy.planned_joint(start.time, GRIPPER_JOINT) if start.carries_on else None
+                plan = goal.plan(start.state, measured[1] if gripper is None else gripper)
                 if policy.on_time(self._ros_now(), start):
+                    break
+                later = policy.postponed(start, self._ros_now() + policy.start_delay)
+                if later is not None:
+                    start = later
                     break
                 delay = 2.0 * delay + (time.perf_counter() - t0)
         except (ValueError, Unreachable) as exc:
@@ -282,6 +331,12 @@ class GoalFlow:
                             segments='; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments),
                             planning_ms=planning_ms, attempt=goal.attempt + 1, **getattr(plan, 'extra', {}))
         self._publish_tool_path(own[1])
+        if kind == 'harvest':
+            for run in self._harvests.values():   # the one it replaces: the apples in the box by then
+                run.until = min(run.until, start.time)
+            self._harvests[goal.key] = HarvestRun(goal.plan.last, start.time)
+            for skip in goal.plan.last.skipped:
+                self._publish_apple(goal.key, skip.index, 'skipped', skip.reason)
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
 
     def _transition(self, goal, state, words):

@@ -23,7 +23,7 @@ DELIVERY = 0.08
 #: s a first goal of a kind is expected to take to plan (later ones: what the last took). A plan
 #: that ends too late to start on time is planned again further ahead, so a guess too short
 #: costs a second planning.
-FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4}
+FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4, 'harvest': 2.0}
 #: rad: the controller's reference is following our last plan when within this of it.
 FOLLOWING = 1e-3
 #: Plans remembered to tell whether the controller's reference follows them: those that may still
@@ -182,6 +182,24 @@ class GoalPolicy:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = np.asarray(measured_q, float)
         return Start((q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start)
+
+    def planned_joint(self, t, name):
+        """The position of joint ``name`` in the sent plan that runs at ``t`` (the gripper, which the
+        controller's reference of the arm does not carry), or None."""
+        plan = plan_active(self.sent, t)
+        if plan is None or name not in plan.names:
+            return None
+        return float(plan.trajectory.state_at(t - plan.start)[0][plan.names.index(name)])
+
+    def postponed(self, start, t):
+        """``start`` moved to the later time ``t`` when the arm rests there from ``start.time`` on (at rest,
+        no sent plan running after it, nothing to carry): a plan that took too long to make can then start
+        later as it is, instead of being planned again. None otherwise."""
+        if start.carry_from is not None or np.abs(start.state[1]).max() > 0 or np.abs(start.state[2]).max() > 0:
+            return None
+        if any(plan.start + plan.trajectory.duration > start.time for plan in self.sent):
+            return None
+        return start._replace(time=t)
 
     @staticmethod
     def on_time(now, start):

@@ -271,8 +271,70 @@ class Harvest:
             reasons = '; '.join(f'apple {s.index}: {s.reason}' for s in sorted(skipped, key=lambda s: s.index))
             raise ValueError(f'no apple can be picked ({reasons})' if skipped else 'the harvest has no apples')
         plans.append(('home', self.cycle.back_home(state, gripper)))
-        return HarvestPlan(_joined(plans), tuple(times), tuple(sorted(skipped, key=lambda s: s.index)),
-                           est, given, ordering_s)
+        skipped = tuple(sorted(skipped, key=lambda s: s.index))
+        plan = replace(_joined(plans), extra=dict(apples=len(times), skipped=len(skipped), order_estimate=est,
+                                                  given_order_estimate=given, ordering_ms=ordering_s * 1e3))
+        return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s)
+
+
+class HarvestGoal:
+    """``plan(start, gripper)`` of a harvest goal, as the planner node calls every goal's: the
+    harvest of ``apples`` from ``start``; the :class:`HarvestPlan` it made is kept in ``last``."""
+
+    def __init__(self, harvest, apples):
+        self.harvest, self.apples, self.last = harvest, list(apples), None
+
+    def __call__(self, start, gripper=None):
+        self.last = self.harvest.plan(start, self.apples, gripper_start=gripper)
+        return self.last.plan
+
+
+#: s after an apple's planned release that it is reported in the box (a loaded controller runs a
+#: little behind the plan's clock).
+REPORT_MARGIN = 0.1
+
+
+class HarvestRun:
+    """A harvest plan sent to start at ``start`` (s, the controller's clock): which apples are in the
+    box by a time, and the harvest's summary when it ends. ``until``: when a harvest that replaced it
+    took over (its apples picked by then are its own)."""
+
+    def __init__(self, plan, start):
+        self.plan, self.start, self.reported, self.until = plan, start, 0, np.inf
+
+    def after_apple_in_hand(self, t):
+        """The earliest time from ``t`` at which the arm rests in the box with no apple in hand: the end of
+        the apple whose cycle runs at ``t`` (``t`` itself once the last apple is in the box)."""
+        for a in self.plan.apples:
+            if self.start + a.end >= t:
+                return self.start + a.end
+        return t
+
+    def picked_by(self, t):
+        """The apples in the box by ``t`` (by the plan's clock, less REPORT_MARGIN), in picking order."""
+        return self.plan.picked_by(min(t, self.until) - self.start - REPORT_MARGIN)
+
+    def newly_picked(self, t):
+        """``(k, apple)`` of the apples in the box by ``t`` not reported before (``k`` counts from 1)."""
+        picked = self.picked_by(t)
+        new = list(enumerate(picked[self.reported:], start=self.reported + 1))
+        self.reported = len(picked)
+        return new
+
+    def summary(self, t, finished):
+        """Figures of the harvest ending at ``t``: all its apples if it ``finished``, else those in the box by then."""
+        picked = self.plan.apples if finished else self.picked_by(t)
+        took = self.plan.plan.duration if finished else max(min(t, self.until) - self.start, 0.0)
+        return dict(picked=len(picked), skipped=len(self.plan.skipped), planned=len(self.plan.apples),
+                    harvest_time=took, apples_per_hour=3600.0 * len(picked) / took if took > 0 else 0.0,
+                    picked_apples=' '.join(str(a.index) for a in picked),
+                    skipped_apples=' '.join(str(s.index) for s in self.plan.skipped))
+
+    def words(self, t, finished):
+        """The summary in words."""
+        s = self.summary(t, finished)
+        return (f"{s['picked']} of {s['planned']} apples picked, {s['skipped']} skipped, {s['harvest_time']:.1f} s, "
+                f"{s['apples_per_hour']:.0f} apples/h")
 
 
 def _joined(plans):

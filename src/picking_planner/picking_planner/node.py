@@ -2,8 +2,9 @@
 
 Serves the actions ``move_to_pose``, ``follow_path`` and ``pick`` (picking_interfaces), and takes
 the same goals on the topics ``goal_pose`` (PoseStamped), ``goal_path`` (PoseArray) and
-``pick_target`` (PoseStamped); subscribes ``joint_states`` and ``joint_commands`` (the
-controller's reference, so that a goal mid-motion continues smoothly). Every plan runs through
+``pick_target`` (PoseStamped), and a tree's apples to harvest on ``harvest_targets`` (PoseArray);
+subscribes ``joint_states`` and ``joint_commands`` (the controller's reference, so that a goal
+mid-motion continues smoothly). Every plan runs through
 the controller's ``follow_joint_trajectory`` action: a goal ends with the controller's result
 (see lifecycle.py). Publishes each plan sent on ``planned_trajectory``, its tool path on
 ``planned_path``, and every goal's transitions on ``planner_status`` (accepted, executing,
@@ -83,6 +84,9 @@ class PlannerNode(GoalFlow, Node):
         self.sub_pose = self.create_subscription(PoseStamped, 'goal_pose', self._on_goal_pose, BURST)
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
+        self.sub_harvest = self.create_subscription(PoseArray, 'harvest_targets', self._on_harvest_targets, BURST)
+        self._harvests = {}           # goal key -> HarvestRun of the harvests sent and not ended, oldest first
+        self.create_timer(0.1, self._harvest_progress)
         self.actions = [ActionServer(self, action, name, execute_callback=partial(self._execute, kind, plan),
                                      goal_callback=lambda _: GoalResponse.ACCEPT,
                                      cancel_callback=self._cancel)

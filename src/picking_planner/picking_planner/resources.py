@@ -14,6 +14,8 @@ from pathlib import Path
 #: starts; and its gripper's opening when open, m.
 HOME_POSITIONS = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
 GRIPPER_OPEN = 0.09
+#: The gripper's joint in the pick cycle's plans (its finger opening, m).
+GRIPPER_JOINT = 'gripper_joint'
 
 
 def config_dir() -> Path:

@@ -103,3 +103,28 @@ def test_a_plan_is_on_time_only_with_room_to_deliver_it():
     start = Start((HOME,) * 3, 'measured', 100.0)
     assert GoalPolicy.on_time(100.0 - DELIVERY - 1e-3, start)
     assert not GoalPolicy.on_time(100.0 - DELIVERY + 1e-3, start)
+
+
+def test_a_plan_from_rest_that_took_too_long_to_make_starts_later_as_it_is(policy):
+    """From rest with no sent plan running after its start (a harvest of many apples, long to plan):
+    the arm is still there later, so the plan is moved, not planned again; from a motion it is not."""
+    z = 0 * HOME
+    rest = Start((HOME, z, z), 'measured', 10.0)
+    assert policy.postponed(rest, 12.0) == rest._replace(time=12.0)
+    assert policy.postponed(Start((HOME, z + 0.1, z), 'reference', 10.0), 12.0) is None
+    assert policy.postponed(rest._replace(carry_from=9.5), 12.0) is None
+    move = trajectory.quintic(HOME - 0.2, HOME, 1.0)
+    policy.sent_plan(goal(), move, Start((HOME - 0.2, z, z), 'measured', 9.5), list('abcdef'), '9.500000000',
+                     9.5, 0.1)
+    assert policy.postponed(rest, 12.0) is None                  # the sent plan still runs at 10 s
+    assert policy.postponed(rest._replace(time=10.6), 12.0).time == 12.0
+
+
+def test_the_gripper_is_read_from_the_plan_running_then(policy):
+    z = 0 * HOME
+    grip = trajectory.stack([trajectory.hold(HOME, 1.0), trajectory.quintic(np.array([0.09]), np.array([0.05]), 1.0)])
+    policy.sent_plan(goal(), grip, Start((HOME, z, z), 'measured', 10.0), [*'abcdef', 'gripper_joint'],
+                     '10.000000000', 10.0, 0.1)
+    assert policy.planned_joint(10.0, 'gripper_joint') == pytest.approx(0.09)
+    assert policy.planned_joint(11.0, 'gripper_joint') == pytest.approx(0.05)
+    assert policy.planned_joint(9.0, 'gripper_joint') is None and policy.planned_joint(10.5, 'thumb') is None

@@ -135,3 +135,26 @@ def test_a_synthetic_tree_is_seeded_and_spaced():
     assert d.min() >= 0.08
     with pytest.raises(ValueError, match='do not fit'):
         synthetic_tree(500, seed=0)
+
+
+def test_a_running_harvest_reports_each_apple_once_and_sums_up_what_was_picked(five):
+    from picking_planner.harvest import REPORT_MARGIN, HarvestRun
+    _, hp = five
+    run = HarvestRun(hp, 100.0)
+    ends = [100.0 + a.end + REPORT_MARGIN for a in hp.apples]
+    assert run.newly_picked(ends[0] - 0.01) == []
+    assert [(k, a.index) for k, a in run.newly_picked(ends[1])] == [(1, hp.apples[0].index), (2, hp.apples[1].index)]
+    assert run.newly_picked(ends[1] + 0.01) == []
+    # Aborted after the second apple: two picked, at their rate; finished: all five in the plan's time.
+    aborted = run.summary(ends[1] + 0.5, finished=False)
+    assert aborted['picked'] == 2 and aborted['planned'] == 5
+    assert aborted['apples_per_hour'] == pytest.approx(3600 * 2 / (ends[1] + 0.5 - 100.0))
+    done = run.summary(1e9, finished=True)
+    assert done['picked'] == 5 and done['harvest_time'] == pytest.approx(hp.plan.duration)
+    assert '5 of 5 apples picked, 0 skipped' in run.words(1e9, True)
+    # A harvest sent meanwhile starts after the apple in hand; the replaced one counts what was picked by then.
+    t = 100.0 + 0.5 * (hp.apples[2].start + hp.apples[2].end)
+    assert run.after_apple_in_hand(t) == pytest.approx(100.0 + hp.apples[2].end)
+    assert run.after_apple_in_hand(100.0 + hp.plan.duration) == 100.0 + hp.plan.duration
+    run.until = 100.0 + hp.apples[2].end + REPORT_MARGIN
+    assert run.summary(1e9, finished=False)['picked'] == 3

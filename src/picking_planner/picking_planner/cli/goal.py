@@ -5,14 +5,18 @@
     picking-goal path --pose 0.55 -0.1 0.45 --pose 0.5 -0.25 0.5 --method via_lspb
     picking-goal path --arc --pose 0.55 -0.1 0.5 --pose 0.5 0.05 0.45
     picking-goal pick 0.7 0.15 0.65 --rpy 0 90 0
+    picking-goal harvest --tree 6 --seed 1
     picking-goal stop
 
 Positions are metres in base_link; ``--rpy`` is roll, pitch, yaw in degrees (fixed
 axes x, y, z), ``--quat`` a quaternion x y z w. ``--method`` chooses the method
 for this goal only (the planner's ``method`` / ``path_method`` parameters are the
-default). Add ``--ros-args -r __ns:=/arm2`` to talk to another arm. Ctrl-C
-cancels the goal: the arm brakes to rest within its limits; ``stop`` cancels
-every goal of the planner.
+default). ``harvest`` sends a tree's apples on ``harvest_targets``: a seeded
+synthetic tree (``--tree N``) or a file (``--file apples.yaml``: a YAML list of
+``[x, y, z]`` positions, m, grasped along ``--rpy``, or of ``{position: [x, y, z],
+rpy: [r, p, y]}`` in degrees), and prints each apple as it is picked or skipped. Add ``--ros-args -r __ns:=/arm2``
+to talk to another arm. Ctrl-C cancels the goal: the arm brakes to rest within its
+limits; ``stop`` cancels every goal of the planner and its controller.
 
 Exit codes: 0 the goal succeeded; 1 it was refused (never ran: unreachable, a
 bad goal, the controller refused its plan); 2 bad arguments; 3 it ended early
@@ -25,10 +29,13 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import rclpy
+import yaml
 from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy.action import ActionClient
@@ -36,6 +43,10 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from scipy.spatial.transform import Rotation
 
+from picking_common.status import stamp_key, status_values
+from picking_common.topics import BURST
+
+from ..harvest import synthetic_tree
 from ..planning import PATH_METHODS, POSE_METHODS
 
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
@@ -69,9 +80,18 @@ def build_parser():
     _orientation(p)
     p.add_argument('--method', choices=PATH_METHODS, help="for this goal only (default: the planner's)")
     p.add_argument('--arc', action='store_true', help='same as --method arc (2 poses: through, end)')
-    for p in sub.choices.values():
-        p.add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
-    sub.add_parser('stop', parents=[common], help='cancel every goal of the planner (the arm brakes to rest)')
+    for kind in ('pose', 'pick', 'path'):
+        sub.choices[kind].add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
+    p = sub.add_parser('harvest', parents=[common], help="harvest a tree's apples (harvest_targets)")
+    tree = p.add_mutually_exclusive_group(required=True)
+    tree.add_argument('--file', help='a YAML list of apples: [x, y, z] (m) or {position: [...], rpy: [...] (deg)}')
+    tree.add_argument('--tree', type=int, metavar='N', help='a synthetic tree of N apples in the canopy')
+    p.add_argument('--seed', type=int, default=0, help='of the synthetic tree (default 0)')
+    p.add_argument('--rpy', type=float, nargs=3, default=[0.0, 90.0, 0.0], metavar=('R', 'P', 'Y'),
+                   help='grasp orientation of apples given without one, degrees (default 0 90 0: along +x)')
+    p.add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
+    sub.add_parser('stop', parents=[common], help='cancel every goal of the planner and its controller (the arm '
+                   'brakes to rest)')
     return parser
 
 
@@ -151,10 +171,11 @@ def wait_for_server(node, action, name, timeout):
 
 
 def stop(node, timeout):
-    """Cancel every goal of the planner's three actions (a cancel request naming no goal cancels all)."""
+    """Cancel every goal of the planner's three actions and of its controller (a cancel request naming
+    no goal cancels all; the controller's holds the plans of the topics' goals, a harvest's too)."""
     from action_msgs.srv import CancelGoal
     canceled = 0
-    for name in ('move_to_pose', 'follow_path', 'pick'):
+    for name in ('move_to_pose', 'follow_path', 'pick', 'follow_joint_trajectory'):
         client = node.create_client(CancelGoal, f'{name}/_action/cancel_goal')
         if not client.wait_for_service(timeout_sec=min(DISCOVERY, timeout)):
             print(f'picking-goal: no {name} action server to stop', file=sys.stderr)
@@ -166,9 +187,89 @@ def stop(node, timeout):
     return EXIT_OK
 
 
+def harvest_poses(args):
+    """The apples of a harvest as 4x4 poses: a synthetic ``--tree`` or the ``--file``'s; ValueError
+    saying what is wrong with them."""
+    if args.tree is not None:
+        if args.tree < 1:
+            raise ValueError('--tree needs at least one apple')
+        return synthetic_tree(args.tree, seed=args.seed)
+    try:
+        data = yaml.safe_load(Path(args.file).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f'{args.file}: {exc}') from None
+    if not isinstance(data, list) or not data:
+        raise ValueError(f'{args.file}: expected a YAML list of apples, [x, y, z] or {{position: ..., rpy: ...}}')
+    poses = []
+    for k, item in enumerate(data):
+        position, rpy = (item.get('position'), item.get('rpy', args.rpy)) if isinstance(item, dict) else (item, args.rpy)
+        try:
+            p, r = np.asarray(position, float), np.asarray(rpy, float)
+        except (TypeError, ValueError):
+            p = r = np.array([])
+        if p.shape != (3,) or r.shape != (3,) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(r))):
+            raise ValueError(f'{args.file}: apple {k}: a position is [x, y, z] in m and rpy [r, p, y] in degrees, '
+                             f'got {item!r}')
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = Rotation.from_euler('xyz', r, degrees=True).as_matrix(), p
+        poses.append(T)
+    return poses
+
+
+def harvest(args, node, poses):
+    """Send a harvest on ``harvest_targets`` and follow it on ``planner_status`` to its end."""
+    pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
+    statuses = []
+    node.create_subscription(DiagnosticStatus, 'planner_status', statuses.append, BURST)
+    where = f'{node.get_namespace().rstrip("/")}/harvest_targets'
+    if not node.spin_until(lambda: pub.get_subscription_count() > 0, min(DISCOVERY, args.timeout)):
+        print(f'picking-goal: nobody subscribes to {where} yet (is picking-planner running in this namespace, with '
+              f'this ROS_DOMAIN_ID?); waiting up to {args.timeout:g} s', file=sys.stderr, flush=True)
+        if not node.spin_until(lambda: pub.get_subscription_count() > 0, max(args.timeout - DISCOVERY, 0.0)):
+            print(f'picking-goal: nobody subscribes to {where}', file=sys.stderr)
+            return EXIT_TIMEOUT
+    msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()) for T in poses])
+    msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
+    key, t_sent, seen = stamp_key(msg.header.stamp), time.monotonic(), 0
+    print(f'sent: a harvest of {len(poses)} apples, goal {key} (planner_status names it so)', flush=True)
+
+    def news():
+        """The next status of this goal (a resend when none came yet: discovery may drop the first)."""
+        nonlocal seen
+        while seen < len(statuses):
+            seen += 1
+            if status_values(statuses[seen - 1]).get('goal') == key:
+                return statuses[seen - 1]
+        return None
+    pub.publish(msg)
+    answered = False
+    try:
+        while True:
+            got = node.spin_until(news, 2.0 if not answered else 3600.0)
+            if got is None:
+                if time.monotonic() - t_sent > args.timeout:
+                    print(f'picking-goal: the planner did not take the goal within {args.timeout:g} s', file=sys.stderr)
+                    return EXIT_TIMEOUT
+                pub.publish(msg)              # the same goal again: the planner answers it, never plans it twice
+                continue
+            answered = True
+            values = status_values(got)
+            print(f'  {time.monotonic() - t_sent:6.2f} s  {got.message}', flush=True)
+            if values.get('state') in ('succeeded', 'refused', 'aborted', 'superseded', 'canceled'):
+                return {'succeeded': EXIT_OK, 'refused': EXIT_REFUSED}.get(values['state'], EXIT_FAILED)
+            if args.no_wait:
+                return EXIT_OK
+    except KeyboardInterrupt:
+        print('stopping the harvest: the arm brakes to rest', flush=True)
+        stop(node, args.timeout)
+        return EXIT_FAILED
+
+
 def run(args, node):
     if args.kind == 'stop':
         return stop(node, args.timeout)
+    if args.kind == 'harvest':
+        return harvest(args, node, harvest_poses(args))
     if args.kind == 'path' and args.arc:
         args.method = 'arc'
     hint = unit_hint(args)
@@ -228,11 +329,13 @@ def main(argv=None):
     args.no_wait = getattr(args, 'no_wait', False)
     if not (np.isfinite(args.timeout) and args.timeout > 0):
         parser.error('--timeout must be > 0 s')
-    if args.kind != 'stop':
-        try:
+    try:
+        if args.kind == 'harvest':
+            harvest_poses(args)
+        elif args.kind != 'stop':
             quaternion(args)
-        except ValueError as exc:
-            parser.error(str(exc))
+    except ValueError as exc:
+        parser.error(str(exc))
     rclpy.init(args=argv)
     node = GoalClient(f'picking_goal_{os.getpid()}')
     try:

@@ -1,0 +1,121 @@
+"""A tree harvested end to end on one arm, as picking-stack starts it (the shipped files)."""
+
+import numpy as np
+import pytest
+import yaml
+from geometry_msgs.msg import PoseArray
+from trajectory_msgs.msg import JointTrajectory
+
+from picking_common.status import stamp_key, status_values
+from picking_planner.harvest import synthetic_tree
+from picking_planner.pick_cycle import PickSettings
+from rosstack import ARM, BURST, RELIABLE, Client, ensure_rclpy, make_pose
+
+NS = '/harvest'
+FINAL = ('succeeded', 'refused', 'aborted', 'superseded', 'canceled')
+BOX = np.array(yaml.safe_load(open(__file__.rsplit('/', 2)[0] + '/config/pick_cycle.yaml'))
+               ['/**/picking_planner']['ros__parameters']['box_position'])
+
+
+@pytest.fixture(scope='module')
+def arm(tmp_path_factory):
+    from picking_planner.cli.stack import Stack as Launcher
+    ensure_rclpy()
+    stack = Launcher(NS, tmp_path_factory.mktemp('logs'))
+    client = Client(NS)
+    trajectories = []
+    client.create_subscription(JointTrajectory, 'planned_trajectory', trajectories.append, RELIABLE)
+    client.pub_harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
+    try:
+        stack.wait_ready()
+        client.wait_ready()
+        yield stack, client, trajectories
+    finally:
+        codes = stack.stop()
+        client.close()
+    assert set(codes.values()) == {0}, codes
+
+
+def tree_msg(client, poses):
+    from scipy.spatial.transform import Rotation
+    msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()) for T in poses])
+    msg.header.frame_id, msg.header.stamp = 'base_link', client.get_clock().now().to_msg()
+    return msg
+
+
+def statuses(client, key):
+    """The statuses of goal ``key`` (call with the client's lock held: wait_for holds it for its predicate)."""
+    return [status_values(m) | {'message': m.message} for _, m in client.planner_status
+            if status_values(m).get('goal') == key]
+
+
+def final(client, key, timeout):
+    return client.wait_for(lambda: next((s for s in statuses(client, key) if s.get('state') in FINAL), None),
+                           timeout, f'the end of harvest {key}')
+
+
+def arm_at(client, q):
+    """True when the newest joint_states put the arm within 1 mrad of ``q`` (lock held)."""
+    msg = client.states[-1][1]
+    names = list(msg.name)
+    return np.abs(np.array([msg.position[names.index(n)] for n in ARM.joint_names]) - q).max() < 1e-3
+
+
+def tool_at(q):
+    return ARM.fk(np.asarray(q)[:6])[:3, 3]
+
+
+def test_the_cli_harvests_a_small_tree_box_to_next_apple_and_skips_what_it_cannot_reach(arm, run_tool, tmp_path):
+    stack, client, trajectories = arm
+    apples = [T[:3, 3].tolist() for T in synthetic_tree(3, seed=5)]
+    tree = tmp_path / 'tree.yaml'
+    tree.write_text(yaml.safe_dump([*apples[:1], [2.5, 0.0, 0.6], *apples[1:]]))
+    seen = len(trajectories)
+    done = run_tool('picking-goal', 'harvest', '--file', tree, '--ros-args', '-r', f'__ns:={NS}', timeout=180)
+    assert done.returncode == 0, done.stdout + done.stderr
+    out = done.stdout
+    assert 'apple 1 skipped: unreachable' in out
+    assert out.count(' picked: in the box ') == 3
+    assert '3 of 3 apples picked, 1 skipped' in out and 'apples/h' in out
+    key = out.split('goal ')[1].split()[0]
+    end = final(client, key, 5.0)
+    assert end['state'] == 'succeeded' and end['picked'] == '3' and end['skipped_apples'] == '1'
+    assert sorted(end['picked_apples'].split()) == ['0', '2', '3']
+    # One plan: home only at its ends; in between, after each release, the arm left the box for the next apple.
+    plan = trajectories[seen]
+    q = np.array([p.positions for p in plan.points])
+    home = np.array(PickSettings().home_positions)
+    at_home = np.abs(q[:, :6] - home).max(axis=1) < 1e-3
+    assert at_home[-1] and not at_home[len(q) // 5:-len(q) // 5].any()
+    in_box = np.linalg.norm([tool_at(x) - BOX for x in q], axis=1) < 2e-3
+    visits = np.flatnonzero(np.diff(in_box.astype(int)) == 1)
+    assert len(visits) == 3
+    # The arm came back home, at rest, with nothing limited on the way.
+    client.wait_for(lambda: arm_at(client, home), 10.0, 'the arm home')
+    with client.lock:
+        assert not [m.message for _, m in client.controller_status if 'command limited' in m.message]
+
+
+def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_apple_in_hand(arm):
+    stack, client, trajectories = arm
+    first = tree_msg(client, synthetic_tree(4, seed=6))
+    key = stamp_key(first.header.stamp)
+    since = client.mark()
+    client.send(client.pub_harvest, first)
+    client.planner_answer(since, timeout=30.0)
+    client.wait_for(lambda: any(s.get('apple_state') == 'picked' for s in statuses(client, key)), 30.0,
+                    'the first apple in the box')
+    seen = len(trajectories)
+    second = tree_msg(client, synthetic_tree(2, seed=8))
+    client.send(client.pub_harvest, second)
+    replaced = final(client, key, 30.0)
+    assert replaced['state'] == 'superseded' and 1 <= int(replaced['picked']) < 4, replaced
+    done = final(client, stamp_key(second.header.stamp), 60.0)
+    assert done['state'] == 'succeeded' and done['picked'] == '2', done
+    # The new harvest began at rest in the box, the apple in hand dropped (the gripper open).
+    plan = trajectories[seen]
+    start = np.array(plan.points[0].positions)
+    assert np.linalg.norm(tool_at(start) - BOX) < 2e-3 and not np.any(plan.points[0].velocities)
+    assert start[plan.joint_names.index('gripper_joint')] == pytest.approx(PickSettings().gripper_open)
+    with client.lock:
+        assert not [m.message for _, m in client.controller_status if 'command limited' in m.message]
