@@ -1,5 +1,7 @@
 """A tree harvested end to end on one arm, as picking-stack starts it (the shipped files)."""
 
+import time
+
 import numpy as np
 import pytest
 import yaml
@@ -107,11 +109,16 @@ def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_a
                     'the first apple in the box')
     seen = len(trajectories)
     second = tree_msg(client, synthetic_tree(2, seed=8))
+    plans = stack.planner.output().count('harvest goal: harvest,')
     client.send(client.pub_harvest, second)
+    for _ in range(3):                   # sent again while the planner plans it: the same goal, planned once
+        time.sleep(0.2)
+        client.pub_harvest.publish(second)
     replaced = final(client, key, 30.0)
     assert replaced['state'] == 'superseded' and 1 <= int(replaced['picked']) < 4, replaced
     done = final(client, stamp_key(second.header.stamp), 60.0)
     assert done['state'] == 'succeeded' and done['picked'] == '2', done
+    assert stack.planner.output().count('harvest goal: harvest,') == plans + 1     # planned once
     # The new harvest began at rest in the box, the apple in hand dropped (the gripper open).
     plan = trajectories[seen]
     start = np.array(plan.points[0].positions)

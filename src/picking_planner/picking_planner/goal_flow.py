@@ -18,7 +18,6 @@ from action_msgs.msg import GoalStatus
 from control_msgs.action import FollowJointTrajectory
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy.action import CancelResponse
-from rclpy.serialization import serialize_message
 from rclpy.task import Future
 
 from picking_common.status import Level, stamp_key, status
@@ -128,12 +127,12 @@ class GoalFlow:
         older = []
         msg = newest_waiting(sub, msg, older.append)
         key, stamp = goal_id(msg.header), stamp_key(msg.header.stamp)
-        data = serialize_message(msg)
         for old in older:
             # (The same goal sent again while the planner was busy is that goal, not an older one.)
-            if stamp == ZERO_KEY or stamp_key(old.header.stamp) != stamp or serialize_message(old) != data:
+            if stamp == ZERO_KEY or old != msg:
                 self._end_waiting(kind, goal_id(old.header), stamp_key(old.header.stamp))
-        repeat, answer = self.policy.repeat(key, data, self._now())
+        # (Compared as messages: their CDR bytes may differ in the padding between fields.)
+        repeat, answer = self.policy.repeat(key, msg, self._now())
         if repeat:
             if answer is not None:            # (None: it is still in flight)
                 self.pub_status.publish(answer)

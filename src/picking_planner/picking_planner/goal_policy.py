@@ -100,7 +100,7 @@ class GoalPolicy:
 
     # -- when a goal comes ------------------------------------------------------------------
     def repeat(self, key, data, wall):
-        """``(True, answer)`` when the goal ``key`` with content ``data`` (its bytes) was taken
+        """``(True, answer)`` when the goal ``key`` with content ``data`` (equal to it) was taken
         already: the answer (None while it is still planned or waits) is to be sent again and the
         goal not planned twice. ``(False, None)`` for a new goal, which is remembered.
 
