@@ -18,6 +18,7 @@ from action_msgs.msg import GoalStatus
 from control_msgs.action import FollowJointTrajectory
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy.action import CancelResponse
+from rclpy.time import Time
 from rclpy.task import Future
 
 from picking_common.status import Level, stamp_key, status
@@ -301,7 +302,6 @@ class GoalFlow:
             self._end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
-        policy.planned(goal, planning_ms * 1e-3)
         names = list(plan.joint_names or self.names)
         period = self.planner.settings.sample_period
         own = waypoints(plan.trajectory, period, before=start.state[2])
@@ -313,8 +313,17 @@ class GoalFlow:
             self._end(goal, Ending(Outcome.REFUSED, f'the plan breaks a limit (from {start.words()}: the arm\'s '
                                                     f'motion cannot be carried on within it): {exc}'))
             return
+        trajectory = self.messages.joint_trajectory(self._stamp_ns(stamp), '', names, *points)
+        # A long plan from rest (a harvest) may be due before its message is even built: it starts later as
+        # it is, allowing as long again as the building took for the sending.
+        if not policy.on_time(self._ros_now(), start):
+            later = policy.postponed(start, self._ros_now() + policy.start_delay + (time.perf_counter() - t0)
+                                     - planning_ms * 1e-3)
+            if later is not None:
+                start, stamp = later, later.time
+                trajectory.header.stamp = Time(nanoseconds=self._stamp_ns(stamp)).to_msg()
         stamp_ns = self._stamp_ns(stamp)
-        trajectory = self.messages.joint_trajectory(stamp_ns, '', names, *points)
+        policy.planned(goal, time.perf_counter() - t0)     # the next goal of its kind expects as long to be ready
         flight = self.lifecycle.sent(Flight(
             goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],
             self._now(), stamp_key(stamp_ns)))

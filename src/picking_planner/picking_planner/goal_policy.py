@@ -195,7 +195,7 @@ class GoalPolicy:
         """``start`` moved to the later time ``t`` when the arm rests there from ``start.time`` on (at rest,
         no sent plan running after it, nothing to carry): a plan that took too long to make can then start
         later as it is, instead of being planned again. None otherwise."""
-        if start.carry_from is not None or np.abs(start.state[1]).max() > 0 or np.abs(start.state[2]).max() > 0:
+        if start.carry_from is not None or np.abs(start.state[1]).max() > 1e-9 or np.abs(start.state[2]).max() > 1e-9:
             return None
         if any(plan.start + plan.trajectory.duration > start.time for plan in self.sent):
             return None

@@ -178,3 +178,31 @@ def plot_corners(path, corners, tracks, title, window=0.05, caption=None):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+def plot_harvest(path, apples, order, skipped, tool, title):
+    """A harvested tree from the front (y-z) and from above (x-y): the apples numbered in the order
+    they were picked (skipped ones grey), the tool's path over the whole harvest."""
+    plt = _pyplot()
+    p = np.array([T[:3, 3] for T in apples])
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
+    for ax, (i, j), (xl, yl) in zip(axes, ((1, 2), (1, 0)), (('y [m]', 'z [m]'), ('y [m]', 'x [m]'))):
+        ax.plot(tool[:, i], tool[:, j], color='tab:blue', lw=0.6, alpha=0.6, label='tool path')
+        ax.plot(p[order, i], p[order, j], color='tab:green', lw=1.2, ls='--', label='visiting order')
+        picked = [k for k in range(len(p)) if k not in skipped]
+        ax.scatter(p[picked, i], p[picked, j], s=90, color='tab:red', zorder=3, label='apple')
+        if skipped:
+            ax.scatter(p[skipped, i], p[skipped, j], s=90, color='0.6', marker='X', zorder=3, label='skipped')
+        for n, k in enumerate(order):
+            ax.annotate(str(n + 1), p[k, [i, j]], textcoords='offset points', xytext=(6, 6), fontsize=8)
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title('front view (y, z)')
+    axes[1].set_title('top view (y, x)')
+    fig.suptitle(title)
+    legend_below(fig, axes[0])
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

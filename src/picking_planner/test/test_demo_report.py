@@ -54,3 +54,40 @@ def test_the_corners_figure_shows_the_tool_at_each_corner_through_and_rounded(ar
     assert past['P3'][1] < past['P3'][0] - 0.01        # leaving the lift early, the tool turns sooner past P3
     png = plot_corners(tmp_path / 'corners.png', corners, tracks, 'corners')
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 10_000
+
+
+def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tree(tmp_path):
+    """Scenario 3 as the planner reports it: the apples in picking order, the skips with their reasons,
+    the markers of the tree and its plot."""
+    from std_msgs.msg import Header
+    from picking_common.status import status
+    from picking_planner.cli.demo_report import harvest_markers, harvest_statuses
+    from picking_planner.harvest import synthetic_tree
+    from picking_planner.plots import plot_harvest
+
+    said = [status('p', 'OK', 'harvest goal 7.0: accepted', goal='7.0', kind='harvest', state='accepted',
+                   order_estimate=3.0, given_order_estimate=3.5),
+            status('p', 'WARN', 'harvest goal 7.0: apple 1 skipped: unreachable: P1 (approach)', goal='7.0',
+                   apple=1, apple_state='skipped'),
+            status('p', 'OK', 'harvest goal 7.0: apple 2 picked: in the box (1 of 2)', goal='7.0', apple=2,
+                   apple_state='picked', at=4.0),
+            status('p', 'OK', 'another goal', goal='8.0', apple=5, apple_state='picked', at=1.0),
+            status('p', 'OK', 'harvest goal 7.0: apple 0 picked: in the box (2 of 2)', goal='7.0', apple=0,
+                   apple_state='picked', at=8.0),
+            status('p', 'OK', 'harvest goal succeeded', goal='7.0', state='succeeded', picked=2)]
+
+    class Rec:
+        def messages(self, topic):
+            return [(0.0, m) for m in said] if topic == 'planner_status' else []
+    got = harvest_statuses(Rec(), '7.0')
+    assert got['picked'] == [(2, 4.0), (0, 8.0)]
+    assert got['skipped'] == [(1, 'unreachable: P1 (approach)')]
+    assert got['accepted']['order_estimate'] == '3' and got['final']['picked'] == '2'
+    apples = synthetic_tree(3, seed=2)
+    markers = harvest_markers(apples, got, Header(frame_id='base_link')).markers
+    texts = {m.id: m.text for m in markers if m.ns == 'order'}
+    assert texts == {0: '2', 1: 'skipped', 2: '1'}
+    order = next(m for m in markers if m.ns == 'visiting order')
+    assert [p.x for p in order.points] == [apples[2][0, 3], apples[0][0, 3]]
+    tool = np.array([T[:3, 3] for T in apples])
+    assert plot_harvest(tmp_path / 'h.png', apples, [2, 0], [1], tool, 'a tree').stat().st_size > 10_000

@@ -129,6 +129,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
         time.sleep(0.5)                          # a last half second of joint_states
         if not args.quick:
             events['arc'] = run_arc_scenario(demo, spin_until, rec)
+            events['harvest'] = run_harvest_scenario(demo, spin_until, rec, node)
         events['ok'] = True
     except RuntimeError as exc:
         events['error'] = str(exc)
@@ -163,6 +164,33 @@ def run_arc_scenario(demo, spin_until, rec):
             raise RuntimeError(f'the arc scenario failed: {what}: {said.strip()}')
     spin_until(lambda: rec.count('planned_trajectory') > n, 5.0, 'the arc trajectory')
     return {'points': [p.tolist() for p in pts], 'trajectory_index': n, 'scale': scale}
+
+
+def run_harvest_scenario(demo, spin_until, rec, node):
+    """A seeded synthetic tree harvested with picking-goal; its apples and visiting order published as
+    markers (recorded, so that Foxglove shows the tree)."""
+    from visualization_msgs.msg import MarkerArray
+    from ..harvest import synthetic_tree
+    from .demo_report import harvest_markers, harvest_statuses
+    n, seed = int(demo.get('harvest_apples', 20)), int(demo.get('harvest_seed', 1))
+    log(f'scenario 3, a tree: {n} apples (seed {seed}), harvested with picking-goal harvest')
+    markers = node.create_publisher(MarkerArray, 'harvest_markers', 10)
+    rec.add(node, {'harvest_markers': MarkerArray}, 10)
+    first = rec.count('planned_trajectory')
+    t0 = time.monotonic()
+    done = subprocess.run([str(HERE / 'picking-goal'), 'harvest', '--tree', str(n), '--seed', str(seed)],
+                          capture_output=True, text=True, timeout=60 + 10 * n, env=os.environ.copy())
+    for line in done.stdout.splitlines():
+        log('  ' + line)
+    if done.returncode != 0:
+        said = (done.stderr.strip() or done.stdout.strip() or f'exit code {done.returncode}').splitlines()[-1]
+        raise RuntimeError(f'the harvest failed: {said.strip()}')
+    key = done.stdout.split(' goal ')[1].split()[0]
+    spin_until(lambda: rec.count('planned_trajectory') > first, 5.0, 'the harvest trajectory')
+    trajectory = rec.messages('planned_trajectory')[first][1]
+    markers.publish(harvest_markers(synthetic_tree(n, seed=seed), harvest_statuses(rec, key), trajectory.header))
+    spin_until(lambda: rec.count('harvest_markers') > 0, 5.0, 'the harvest markers')
+    return {'goal': key, 'trajectory_index': first, 'apples': n, 'seed': seed, 'wall': time.monotonic() - t0}
 
 
 #: Status values that name something (a goal, a trajectory by its stamp): text, never numbers.

@@ -237,6 +237,11 @@ def analyse_and_report(rec, events, config, out, quick=False):
                   'a second off (`corners.png`: the tool at each corner, side on).']
     if 'arc' in events:
         lines += arc_section(rec, events['arc'], arm, names)
+    harvest_plot = None
+    if 'harvest' in events:
+        section, harvest_plot, harvest_checks = harvest_section(rec, events['harvest'], arm, out)
+        lines += section
+        checks.update(harvest_checks)
 
     # Plots.
     files = []
@@ -269,6 +274,8 @@ def analyse_and_report(rec, events, config, out, quick=False):
                                           'the corners": blend, the joint moves meet the lines at P1, P3 and P4 at '
                                           'speed; "rounded": they meet the lines blend_radius before. "P4 in" and "P4 out": '
                                           'line into the box and the line out of it.'))
+    if harvest_plot is not None:
+        files.append(harvest_plot)
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
     files.append(mcap_path)
     decoded = _check_mcap(mcap_path)
@@ -286,6 +293,93 @@ def analyse_and_report(rec, events, config, out, quick=False):
         'cartesian': cart_rows, 'checks': checks, 'files': [str(f) for f in files]}, indent=2))
     print(report)
     return all(checks.values())
+
+
+def harvest_statuses(rec, key):
+    """What planner_status said of harvest ``key``: ``{'picked': [(apple, at s)] in picking order,
+    'skipped': [(apple, reason)], 'accepted': values, 'final': values}``."""
+    out = {'picked': [], 'skipped': [], 'accepted': {}, 'final': {}}
+    for _, m in rec.messages('planner_status'):
+        v = status_values(m)
+        if v.get('goal') != key:
+            continue
+        if v.get('apple_state') == 'picked':
+            out['picked'].append((int(v['apple']), float(v['at'])))
+        elif v.get('apple_state') == 'skipped':
+            out['skipped'].append((int(v['apple']), m.message.split(': ', 2)[-1]))
+        elif v.get('state') == 'accepted':
+            out['accepted'] = v
+        elif v.get('state') in ('succeeded', 'aborted', 'superseded', 'canceled', 'refused'):
+            out['final'] = v
+    return out
+
+
+def harvest_markers(apples, said, header):
+    """visualization_msgs/MarkerArray of a harvested tree: each apple a sphere (red picked, grey
+    skipped), its place in the visiting order as text, and the order as a line strip."""
+    from geometry_msgs.msg import Point
+    from visualization_msgs.msg import Marker, MarkerArray
+    order = [i for i, _ in said['picked']]
+    skipped = {i for i, _ in said['skipped']}
+    out = MarkerArray()
+    for i, T in enumerate(apples):
+        for kind in ('apple', 'order'):
+            m = Marker(ns=kind, id=i, action=Marker.ADD)
+            m.header.frame_id = header.frame_id or 'base_link'
+            m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in T[:3, 3])
+            m.pose.orientation.w = 1.0
+            if kind == 'apple':
+                m.type, m.scale.x, m.scale.y, m.scale.z = Marker.SPHERE, 0.07, 0.07, 0.07
+                m.color.r, m.color.g, m.color.b, m.color.a = (0.5, 0.5, 0.5, 0.6) if i in skipped else (0.8, 0.1, 0.1, 1)
+            else:
+                m.type, m.scale.z, m.text = Marker.TEXT_VIEW_FACING, 0.04, (
+                    f'{order.index(i) + 1}' if i in order else 'skipped')
+                m.pose.position.z += 0.06
+                m.color.r = m.color.g = m.color.b = m.color.a = 1.0
+            out.markers.append(m)
+    path = Marker(ns='visiting order', id=0, action=Marker.ADD, type=Marker.LINE_STRIP)
+    path.header.frame_id = header.frame_id or 'base_link'
+    path.pose.orientation.w, path.scale.x = 1.0, 0.005
+    path.color.g, path.color.b, path.color.a = 0.6, 1.0, 1.0
+    path.points = [Point(x=float(apples[i][0, 3]), y=float(apples[i][1, 3]), z=float(apples[i][2, 3])) for i in order]
+    out.markers.append(path)
+    return out
+
+
+def harvest_section(rec, event, arm, out):
+    """The report's section on scenario 3 and its plot: ``(lines, plot path, checks)``."""
+    from ..harvest import synthetic_tree
+    from ..plots import plot_harvest
+    said = harvest_statuses(rec, event['goal'])
+    final, accepted = said['final'], said['accepted']
+    apples = synthetic_tree(event['apples'], seed=event['seed'])
+    t_recv, msg = rec.messages('planned_trajectory')[event['trajectory_index']]
+    names, t, q, _, _ = planned_arrays(msg, t_recv)
+    tool = arm.fk(q[:, :arm.dof])[:, :3, 3]
+    order = [i for i, _ in said['picked']]
+    ends = [at for _, at in said['picked']]
+    rows = [(k + 1, i, f'{np.round(apples[i][:3, 3], 3).tolist()}', f'{at:.2f}',
+             f'{at - (ends[k - 1] if k else 0.0):.2f}') for k, (i, at) in enumerate(said['picked'])]
+    rows += [('skipped', i, f'{np.round(apples[i][:3, 3], 3).tolist()}', '', why) for i, why in said['skipped']]
+    path = plot_harvest(out / 'harvest.png', apples, order, [i for i, _ in said['skipped']], tool,
+                        f'Scenario 3: a tree of {len(apples)} apples, its visiting order and the tool path')
+    per_apple = float(final.get('harvest_time', 'nan')) / max(int(final.get('picked', 0)), 1)
+    lines = ['', '## Scenario 3: a tree harvested', '',
+             f'{len(apples)} apples of the synthetic tree seeded {event["seed"]} (`picking-goal harvest --tree '
+             f'{len(apples)} --seed {event["seed"]}`): **{final.get("picked")} picked**, {final.get("skipped")} '
+             f'skipped, {float(final.get("harvest_time", "nan")):.1f} s planned and run, {per_apple:.2f} s an apple '
+             f'(box included): **{float(final.get("apples_per_hour", "nan")):.0f} apples an hour**. Order (estimated '
+             f'moves between apples, home and box): {float(accepted.get("order_estimate", "nan")):.2f} s planned '
+             f'against {float(accepted.get("given_order_estimate", "nan")):.2f} s in the order given, chosen in '
+             f'{float(accepted.get("ordering_ms", "nan")):.0f} ms; the harvest planned in '
+             f'{float(accepted.get("planning_ms", "nan")) / 1e3:.2f} s.', '',
+             _table(['#', 'apple', 'position [m]', 'in the box at [s]', 'cycle [s] / reason'], rows), '',
+             '`harvest.png`: the tree from the front and from above, the visiting order and the tool path; '
+             '`demo.mcap` holds the tree as visualization_msgs/MarkerArray on `harvest_markers`.']
+    checks = {'the harvest succeeded': final.get('state') == 'succeeded',
+              'every apple picked or skipped with a reason': len(order) + len(said['skipped']) == len(apples)}
+    lines += ['', *[f'- {k}: {"yes" if v else "NO"}' for k, v in checks.items()]]
+    return lines, path, checks
 
 
 def arc_section(rec, arc_event, arm, names):
