@@ -213,7 +213,10 @@ class Harvest:
                 seed = self.home
                 for name in ('P1', 'P2', 'P3'):
                     q[name] = seed = self.arm.check_reachable(poses[name], seed=seed)
-                _, q_top, _ = self.cycle._quickest_place(poses, q['P3'], self.home)
+                if self.cycle.s.place_yaw_free:
+                    _, q_top, _ = self.cycle.quickest_place(poses, q['P3'], self.home)
+                else:
+                    q_top = self.arm.check_reachable(poses['P4'], seed=q['P3'])
                 ok.append((i, np.asarray(T, float), q['P1'], q_top))
             except Unreachable as exc:
                 skipped.append(Skipped(i, f'unreachable: {exc}'))

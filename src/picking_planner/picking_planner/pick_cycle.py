@@ -234,7 +234,7 @@ class PickCycle:
                 q[name] = None
             seed = q[name] if q[name] is not None else seed
         if s.place_yaw_free:
-            poses, q['P4'], q['P5'] = self._quickest_place(poses, q['P3'], home)
+            poses, q['P4'], q['P5'] = self.quickest_place(poses, q['P3'], home)
         parts, cart = [], []
 
         def add(label, method, traj, path=None):
@@ -428,8 +428,9 @@ class PickCycle:
             raise Unreachable(f'{name} ({_LABELS[name]}) moved by blend_radius {distance} m along its line: '
                               f'{exc}') from None
 
-    def _quickest_place(self, poses, q_lift, home):
-        """P4 and P5 turned about the vertical for the quickest transfer and return."""
+    def quickest_place(self, poses, q_lift, home):
+        """``(poses, q4, q5)``: the key poses with P4 and P5 turned about the vertical for the quickest
+        transfer from ``q_lift`` and return to ``home``, and the joints there."""
         vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
         # Every turn at once: 12 candidates in 30 degree steps, one batched IK each for P4 and P5.
         turns = _PLACE_TURNS
