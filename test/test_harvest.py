@@ -126,3 +126,22 @@ def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_a
     assert start[plan.joint_names.index('gripper_joint')] == pytest.approx(PickSettings().gripper_open)
     with client.lock:
         assert not [m.message for _, m in client.controller_status if 'command limited' in m.message]
+
+
+def test_a_harvest_stopped_mid_way_says_which_apples_are_in_the_box_and_which_one_failed(arm, run_tool):
+    stack, client, _ = arm
+    tree = tree_msg(client, synthetic_tree(3, seed=12))
+    key = stamp_key(tree.header.stamp)
+    since = client.mark()
+    client.send(client.pub_harvest, tree)
+    client.planner_answer(since, timeout=30.0)
+    client.wait_for(lambda: any(s.get('apple_state') == 'picked' for s in statuses(client, key)), 30.0,
+                    'the first apple in the box')
+    time.sleep(1.0)                                       # into the second apple's cycle
+    stopped = run_tool('picking-goal', 'stop', '--ros-args', '-r', f'__ns:={NS}')
+    assert stopped.returncode == 0, stopped.stdout + stopped.stderr
+    end = final(client, key, 20.0)
+    assert end['state'] == 'canceled' and end['picked'] == '1', end
+    with client.lock:
+        failed = [s for s in statuses(client, key) if s.get('apple_state') == 'failed']
+    assert len(failed) == 1 and 'canceled during its cycle' in failed[0]['message'], failed

@@ -111,10 +111,10 @@ class GoalFlow:
         for key, run in self._harvests.items():
             for k, apple in run.newly_picked(now):
                 self._publish_apple(key, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})',
-                                    picked=k, at=apple.end)
+                                    picked=k, started=apple.start, at=apple.end)
 
     def _publish_apple(self, key, index, word, words, **values):
-        state = 'executing' if word == 'picked' else 'planned'
+        state = {'picked': 'executing', 'skipped': 'planned'}.get(word, 'ended')
         self.pub_status.publish(status('picking_planner', Level.OK if word == 'picked' else Level.WARN,
                                        f'harvest goal {key}: apple {index} {word}: {words}', goal=key,
                                        kind='harvest', state=state, apple=index, apple_state=word, **values))
@@ -220,6 +220,10 @@ class GoalFlow:
             finished = outcome == Outcome.SUCCEEDED
             text += f' ({run.words(self._ros_now(), finished)})'
             harvest = run.summary(self._ros_now(), finished)
+            apple = None if finished else run.in_hand(self._ros_now())
+            if apple is not None:
+                self._publish_apple(goal.key, apple.index, 'failed', f'the harvest {outcome.word} during its cycle: '
+                                    f'{ending.message}', started=apple.start)
         self._answer(goal.key, status('picking_planner', level, text, goal=goal.key, kind=goal.kind,
                                       state=outcome.word, controller_error_code=ending.code, **_stamp(goal), **harvest))
         if outcome == Outcome.SUPERSEDED:
@@ -293,7 +297,8 @@ class GoalFlow:
                 plan = goal.plan(start.state, measured[1] if gripper is None else gripper)
                 if policy.on_time(self._ros_now(), start):
                     break
-                later = policy.postponed(start, self._ros_now() + policy.start_delay)
+                # (Allowing as long again as planning took for the rest: building the message, sending it.)
+                later = policy.postponed(start, self._ros_now() + policy.start_delay + (time.perf_counter() - t0))
                 if later is not None:
                     start = later
                     break
@@ -315,10 +320,9 @@ class GoalFlow:
             return
         trajectory = self.messages.joint_trajectory(self._stamp_ns(stamp), '', names, *points)
         # A long plan from rest (a harvest) may be due before its message is even built: it starts later as
-        # it is, allowing as long again as the building took for the sending.
+        # it is, allowing as long again as its preparation took for the sending.
         if not policy.on_time(self._ros_now(), start):
-            later = policy.postponed(start, self._ros_now() + policy.start_delay + (time.perf_counter() - t0)
-                                     - planning_ms * 1e-3)
+            later = policy.postponed(start, self._ros_now() + policy.start_delay + (time.perf_counter() - t0))
             if later is not None:
                 start, stamp = later, later.time
                 trajectory.header.stamp = Time(nanoseconds=self._stamp_ns(stamp)).to_msg()

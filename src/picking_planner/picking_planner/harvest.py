@@ -315,7 +315,17 @@ class HarvestRun:
 
     def picked_by(self, t):
         """The apples in the box by ``t`` (by the plan's clock, less REPORT_MARGIN), in picking order."""
-        return self.plan.picked_by(min(t, self.until) - self.start - REPORT_MARGIN)
+        if t >= self.until:                  # replaced: the harvest that took over started after its apple in hand
+            return self.plan.picked_by(self.until - self.start)
+        return self.plan.picked_by(t - self.start - REPORT_MARGIN)
+
+    def in_hand(self, t):
+        """The apple whose cycle runs at ``t`` (and was not finished), or None (also once replaced)."""
+        if t >= self.until:
+            return None
+        rel = t - self.start
+        return next((a for a in self.plan.apples if a.start <= rel < a.end + REPORT_MARGIN
+                     and a not in self.picked_by(t)), None)
 
     def newly_picked(self, t):
         """``(k, apple)`` of the apples in the box by ``t`` not reported before (``k`` counts from 1)."""

@@ -158,3 +158,14 @@ def test_a_running_harvest_reports_each_apple_once_and_sums_up_what_was_picked(f
     assert run.after_apple_in_hand(100.0 + hp.plan.duration) == 100.0 + hp.plan.duration
     run.until = 100.0 + hp.apples[2].end + REPORT_MARGIN
     assert run.summary(1e9, finished=False)['picked'] == 3
+
+
+def test_the_apple_in_hand_when_a_harvest_ends_early_is_the_one_whose_cycle_ran(five):
+    from picking_planner.harvest import HarvestRun
+    _, hp = five
+    run = HarvestRun(hp, 10.0)
+    third = hp.apples[2]
+    assert run.in_hand(10.0 + 0.5 * (third.start + third.end)) == third
+    assert run.in_hand(10.0 + hp.plan.duration + 1.0) is None          # all in the box, on the way home
+    run.until = 10.0 + third.end                        # replaced: the new harvest began once it was in the box
+    assert run.in_hand(1e9) is None and [a.index for a in run.picked_by(1e9)] == [a.index for a in hp.apples[:3]]

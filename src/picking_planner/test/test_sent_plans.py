@@ -148,3 +148,18 @@ def test_carried_points_keep_every_break_and_acceleration_step_of_the_plans_they
         local = 10.0 + t[k] - plan.start
         assert qdd[k] == pytest.approx(plan.trajectory.sample([local - 1e-9])[2][0], abs=1e-5)
         assert qdd[k + 1] == pytest.approx(plan.trajectory.sample([local + 1e-9])[2][0], abs=1e-5)
+
+
+def test_carried_points_hold_a_plan_that_ended_before_the_next_began():
+    """A plan from rest may start after the one before it has ended (planned late, then started later as it
+    is): the points carried across the gap hold the first plan's end, as the controller holds its last point
+    (its last polynomial, extrapolated, reached 5.6 rad on a wrist: a flood goal refused for a limit)."""
+    a = trajectory.quintic(np.array([0.0, 0.0]), np.array([0.5, -0.5]), 0.5)
+    b = trajectory.quintic(np.array([0.5, -0.5]), np.array([0.0, 0.0]), 0.5)
+    sent = [SentPlan(a, 10.0, ARM), SentPlan(b, 11.0, ARM, carries_on=False)]
+    t, q, qd, qdd = carried_points(sent, 10.0, 11.2, 0.01, ARM)
+    gap = (t > 0.5) & (t < 1.0)
+    assert gap.sum() >= 40
+    assert q[gap] == pytest.approx(np.tile([0.5, -0.5], (gap.sum(), 1)))
+    assert not qd[gap].any() and not qdd[gap].any()
+    assert np.abs(q).max() <= 0.5 + 1e-12

@@ -128,7 +128,10 @@ def analyse_and_report(rec, events, config, out, quick=False):
     planner_yaml = yaml.safe_load((config / 'planner.yaml').read_text())
     params = {**next(iter(planner_yaml.values()))['ros__parameters'], **planner_params}
     trajectories = rec.messages('planned_trajectory')
-    t_recv, pick_msg = trajectories[0]
+    # The pick's plan as the controller ran it: a plan that reached it too late was planned again.
+    ran = {status_values(m).get('trajectory') for _, m in rec.messages('controller_status')
+           if m.message == 'trajectory accepted'}
+    t_recv, pick_msg = next((x for x in trajectories if stamp_key(x[1].header.stamp) in ran), trajectories[0])
     names, t, q, qd, qdd = planned_arrays(pick_msg, t_recv)
     t_meas, q_meas = measured_arrays(rec.messages('joint_states'), names)
     err = tracking_error(t, q, t_meas, q_meas)

@@ -31,9 +31,11 @@ _MERGE = 1e-5
 def one_sided(traj, t, after, at=None):
     """``(q, qd, qdd)`` of the PiecewisePolynomial ``traj`` at times ``t`` (on its own clock, within
     it), each (N, n): at a break, the limit from the segment ``after`` it (True) or before it. With
-    ``at``, the segments are those of the times ``at`` and evaluated at ``t`` (a hair beside them)."""
+    ``at``, the segments are those of the times ``at`` and evaluated at ``t`` (a hair beside them).
+    Beyond its ends the state is the end's, held (as a controller holds a trajectory's last point; the
+    last polynomial, extrapolated, left the joints' range within a second)."""
     b = traj.breaks
-    t = np.asarray(t, float)
+    t = np.clip(np.asarray(t, float), b[0], b[-1])
     k = np.clip(np.searchsorted(b, t if at is None else at, side='right' if after else 'left') - 1, 0, len(b) - 2)
     tau = (t - b[k])[:, None]
     c = traj.coeffs[k]                                                   # (N, 6, n)
