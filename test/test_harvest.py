@@ -56,6 +56,18 @@ def final(client, key, timeout):
                            timeout, f'the end of harvest {key}')
 
 
+def first_apple_in_the_box(client, apples):
+    """Send a harvest of ``apples``; return its id once its first apple is in the box."""
+    tree = tree_msg(client, apples)
+    key = stamp_key(tree.header.stamp)
+    since = client.mark()
+    client.send(client.pub_harvest, tree)
+    client.planner_answer(since, timeout=30.0)
+    client.wait_for(lambda: any(s.get('apple_state') == 'picked' for s in statuses(client, key)), 30.0,
+                    'the first apple in the box')
+    return key
+
+
 def arm_at(client, q):
     """True when the newest joint_states put the arm within 1 mrad of ``q`` (lock held)."""
     msg = client.states[-1][1]
@@ -100,13 +112,7 @@ def test_the_cli_harvests_a_small_tree_box_to_next_apple_and_skips_what_it_canno
 
 def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_apple_in_hand(arm):
     stack, client, trajectories = arm
-    first = tree_msg(client, synthetic_tree(4, seed=6))
-    key = stamp_key(first.header.stamp)
-    since = client.mark()
-    client.send(client.pub_harvest, first)
-    client.planner_answer(since, timeout=30.0)
-    client.wait_for(lambda: any(s.get('apple_state') == 'picked' for s in statuses(client, key)), 30.0,
-                    'the first apple in the box')
+    key = first_apple_in_the_box(client, synthetic_tree(4, seed=6))
     seen = len(trajectories)
     second = tree_msg(client, synthetic_tree(2, seed=8))
     plans = stack.planner.output().count('harvest goal: harvest,')
@@ -130,18 +136,14 @@ def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_a
 
 def test_a_harvest_stopped_mid_way_says_which_apples_are_in_the_box_and_which_one_failed(arm, run_tool):
     stack, client, _ = arm
-    tree = tree_msg(client, synthetic_tree(3, seed=12))
-    key = stamp_key(tree.header.stamp)
-    since = client.mark()
-    client.send(client.pub_harvest, tree)
-    client.planner_answer(since, timeout=30.0)
-    client.wait_for(lambda: any(s.get('apple_state') == 'picked' for s in statuses(client, key)), 30.0,
-                    'the first apple in the box')
+    key = first_apple_in_the_box(client, synthetic_tree(4, seed=12))
     time.sleep(1.0)                                       # into the second apple's cycle
     stopped = run_tool('picking-goal', 'stop', '--ros-args', '-r', f'__ns:={NS}')
     assert stopped.returncode == 0, stopped.stdout + stopped.stderr
     end = final(client, key, 20.0)
-    assert end['state'] == 'canceled' and end['picked'] == '1', end
+    # (picking-goal takes a couple of seconds to start and discover the controller: an apple or two more may be in.)
+    assert end['state'] == 'canceled' and 1 <= int(end['picked']) < 4, end
     with client.lock:
         failed = [s for s in statuses(client, key) if s.get('apple_state') == 'failed']
     assert len(failed) == 1 and 'canceled during its cycle' in failed[0]['message'], failed
+    assert failed[0]['apple'] not in end['picked_apples'].split()

@@ -194,6 +194,14 @@ def _trajectory(names, points):
     return msg
 
 
+def _at_rest(client, window=30, spread=1e-5):
+    """True when the last ``window`` joint_states (0.3 s) lie within ``spread`` rad (the client's lock held)."""
+    if len(client.states) < window:
+        return False
+    q = np.array([m.position for _, m in client.states[-window:]])
+    return bool((q.max(axis=0) - q.min(axis=0)).max() < spread)
+
+
 @pytest.mark.parametrize('names, points, reason', [
     (ARM_JOINTS[:5] + ['tail_joint'], [(1.0, HOME)], 'unknown joints'),
     (ARM_JOINTS[:5], [(1.0, HOME[:5])], 'missing joints'),
@@ -204,6 +212,8 @@ def _trajectory(names, points):
 ])
 def test_bad_trajectory_is_refused_by_the_controller(arm1, names, points, reason):
     _, client = arm1
+    # (At rest first: just after the stack comes up the servo still settles by a tenth of a milliradian.)
+    client.wait_for(lambda: _at_rest(client), 10.0, 'the arm at rest')
     before = client.last_positions()
     mark = client.mark()
     client.pub_traj.publish(_trajectory(names, points))
