@@ -105,6 +105,11 @@ class GoalFlow:
         newest = next(reversed(self._harvests.values()), None)
         return t if newest is None else newest.after_apple_in_hand(t)
 
+    def _every_tenth(self):
+        """The node's one timer: the goal that waits, then a running harvest's apples."""
+        self._serve_waiting()
+        self._harvest_progress()
+
     def _harvest_progress(self):
         """Each apple of a running harvest reported once it is in the box."""
         now = self._ros_now()

@@ -71,7 +71,7 @@ class PlannerNode(GoalFlow, Node):
         # quarter of a microsecond, too coarse for the microsecond between a plan's step points.
         self._origin_ns = self.get_clock().now().nanoseconds - 1_000_000_000
         self.policy = GoalPolicy(self.arm, self.get_parameter('start_delay').value)
-        self.create_timer(0.1, self._serve_waiting)
+        self.create_timer(0.1, self._every_tenth)
         # Trajectories and tool paths are written straight to CDR bytes (much faster than the
         # message classes) where this middleware reads them back as the same messages.
         self.codec = Codec()
@@ -86,7 +86,6 @@ class PlannerNode(GoalFlow, Node):
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
         self.sub_harvest = self.create_subscription(PoseArray, 'harvest_targets', self._on_harvest_targets, BURST)
         self._harvests = {}           # goal key -> HarvestRun of the harvests sent and not ended, oldest first
-        self.create_timer(0.1, self._harvest_progress)
         self.actions = [ActionServer(self, action, name, execute_callback=partial(self._execute, kind, plan),
                                      goal_callback=lambda _: GoalResponse.ACCEPT,
                                      cancel_callback=self._cancel)
