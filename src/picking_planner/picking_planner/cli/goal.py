@@ -178,8 +178,12 @@ def stop(node, timeout):
     for name in ('move_to_pose', 'follow_path', 'pick', 'follow_joint_trajectory'):
         client = node.create_client(CancelGoal, f'{name}/_action/cancel_goal')
         if not client.wait_for_service(timeout_sec=min(DISCOVERY, timeout)):
-            print(f'picking-goal: no {name} action server to stop', file=sys.stderr)
-            return EXIT_TIMEOUT
+            # (A process just started may need longer than that to discover the services on a busy machine.)
+            print(f'picking-goal: no {name} action server yet; waiting up to {timeout:g} s', file=sys.stderr,
+                  flush=True)
+            if not client.wait_for_service(timeout_sec=max(timeout - DISCOVERY, 0.0)):
+                print(f'picking-goal: no {name} action server to stop', file=sys.stderr)
+                return EXIT_TIMEOUT
         future = client.call_async(CancelGoal.Request())
         answer = node.spin_until(lambda: future.done() and future.result(), timeout)
         canceled += len(answer.goals_canceling) if answer else 0
