@@ -33,6 +33,7 @@ def shipped(node, files):
 def page():
     from picking_common.params import markdown
     from picking_controller.parameters import PARAMS as CONTROLLER
+    from picking_planner.parameters import HARVESTER
     from picking_planner.parameters import PARAMS as PLANNER
     from picking_sim.parameters import PARAMS as SIM
     parts = ['# Parameters', '',
@@ -45,7 +46,8 @@ def page():
              'Written by `tools/param_docs.py` from `src/<package>/<package>/parameters.py`.', '']
     for node, params, files in (('picking_sim', SIM, ('sim.yaml',)),
                                 ('picking_controller', CONTROLLER, ('controller.yaml',)),
-                                ('picking_planner', PLANNER, ('planner.yaml', 'pick_cycle.yaml'))):
+                                ('picking_planner', PLANNER, ('planner.yaml', 'pick_cycle.yaml')),
+                                ('picking_harvester', HARVESTER, ())):
         parts += [f'## {node}', '', markdown(params, shipped(node, files)), '']
     parts += ['`config/paper_methods.yaml` sets the planner\'s methods back to the paper\'s (`picking-stack --paper`).',
               '']

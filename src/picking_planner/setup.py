@@ -33,6 +33,7 @@ setup(
             'picking-goal = picking_planner.cli.goal:main',
             'picking-demo = picking_planner.cli.demo:main',
             'picking-stack = picking_planner.cli.stack:main',
+            'picking-harvester = picking_planner.harvester:main',
             'planner = picking_planner.node:main',
         ],
     },

@@ -43,11 +43,13 @@ class LatestMessage:
     bytes and only the newest is read; bytes the reader refuses are read by the message class instead.
     """
 
-    def __init__(self, parent, msg_type, topic, reader=None):
+    def __init__(self, parent, msg_type, topic, reader=None, depth=1):
         self.msg_type = msg_type
         self.reader = reader
         self.node = parent
-        self.sub = parent.create_subscription(msg_type, topic, lambda msg: None, NEWEST, raw=reader is not None)
+        qos = NEWEST if depth == 1 else QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT,
+                                                    history=HistoryPolicy.KEEP_LAST)
+        self.sub = parent.create_subscription(msg_type, topic, lambda msg: None, qos, raw=reader is not None)
         # rclpy's executor waits on every subscription in this list, and on its QoS event handlers: out of
         # both, this one is read here only (left in, its events kept an idle executor busy).
         parent._subscriptions.remove(self.sub)
@@ -65,13 +67,26 @@ class LatestMessage:
                 break
             newest = got[0]
         if newest is not None:
-            if raw:
-                try:
-                    newest = self.reader(newest)
-                except ValueError:
-                    newest = deserialize_message(newest, self.msg_type)
-            self.last = newest
+            self.last = self._read(newest)
         return self.last
+
+    def take_all(self):
+        """Every message received since the last take (up to ``depth``, the newest), oldest first."""
+        raw = self.reader is not None
+        out = []
+        while (got := self.sub.handle.take_message(self.msg_type, raw)) is not None:
+            out.append(self._read(got[0]))
+        if out:
+            self.last = out[-1]
+        return out
+
+    def _read(self, msg):
+        if self.reader is None:
+            return msg
+        try:
+            return self.reader(msg)
+        except ValueError:
+            return deserialize_message(msg, self.msg_type)
 
     def publisher_count(self):
         return self.sub.get_publisher_count()

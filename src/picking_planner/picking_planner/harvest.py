@@ -194,6 +194,22 @@ class Harvest:
         self.cycle = cycle
         self.arm = cycle.arm
         self.home = np.asarray(cycle.s.home_positions, float)
+        self._cycles = {}   # cycles planned, by their start, apple and gripper: a coordinator plans many harvests
+
+    def _cycle(self, state, T, gripper, chained):
+        """The cycle of apple ``T`` from ``state`` (remembered: the same inputs plan the same cycle)."""
+        key = (tuple(np.asarray(x, float).tobytes() for x in state), np.asarray(T, float).tobytes(), gripper, chained)
+        if key not in self._cycles:
+            try:
+                self._cycles[key] = self.cycle.plan(state, T, gripper, from_box=chained, home_after=False)
+            except (Unreachable, ValueError) as exc:
+                self._cycles[key] = exc
+            if len(self._cycles) > 4096:
+                self._cycles.pop(next(iter(self._cycles)))
+        found = self._cycles[key]
+        if isinstance(found, Exception):
+            raise found
+        return found
 
     def in_box(self, start):
         """True when ``start = (q, qd, qdd)`` rests with the tool at the box's drop point (a harvest
@@ -260,7 +276,7 @@ class Harvest:
         t = 0.0
         for index, T, _, _ in ok:
             try:
-                p = self.cycle.plan(state, T, gripper, from_box=chained, home_after=False)
+                p = self._cycle(state, T, gripper, chained)
             except (Unreachable, ValueError) as exc:
                 skipped.append(Skipped(index, str(exc)))
                 continue

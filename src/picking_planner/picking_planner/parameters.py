@@ -9,6 +9,7 @@ planner cannot plan with is refused with the reason).
 from picking_common.params import Param
 
 from .pick_cycle import PickSettings
+from .platform import CLEARANCE, SLACK
 from .planning import PlannerSettings
 
 #: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
@@ -80,3 +81,15 @@ PARAMS = (
           'moving arm never jumps', 's', (0.0, 10.0)),
     *(Param(name, _default(name), text, unit, rng) for name, (text, unit, rng) in _TEXT.items()),
 )
+
+#: picking-harvester's parameters (the coordinator of several arms, harvester.py).
+HARVESTER = (
+    Param('platform_file', '', 'the platform: its arms\' namespaces, base poses and boxes (YAML; empty: the shipped '
+          'config/platform.yaml)', read_only=True),
+    Param('layout', '', 'the layout of the platform file to run (empty: its default)', read_only=True),
+    Param('clearance', CLEARANCE, 'the least distance kept between two arms\' collision capsules', 'm', (0.0, 1.0),
+          read_only=True),
+    Param('slack', SLACK, 'two arms\' plans are kept apart for a start of one this much before or after the other\'s',
+          's', (0.0, 5.0), read_only=True),
+)
+

@@ -6,6 +6,7 @@
     picking-goal path --arc --pose 0.55 -0.1 0.5 --pose 0.5 0.05 0.45
     picking-goal pick 0.7 0.15 0.65 --rpy 0 90 0
     picking-goal harvest --tree 6 --seed 1
+    picking-goal tree --tree 40 --seed 1
     picking-goal stop
 
 Positions are metres in base_link; ``--rpy`` is roll, pitch, yaw in degrees (fixed
@@ -14,7 +15,9 @@ for this goal only (the planner's ``method`` / ``path_method`` parameters are th
 default). ``harvest`` sends a tree's apples on ``harvest_targets``: a seeded
 synthetic tree (``--tree N``) or a file (``--file apples.yaml``: a YAML list of
 ``[x, y, z]`` positions, m, grasped along ``--rpy``, or of ``{position: [x, y, z],
-rpy: [r, p, y]}`` in degrees), and prints each apple as it is picked or skipped. Add ``--ros-args -r __ns:=/arm2``
+rpy: [r, p, y]}`` in degrees), and prints each apple as it is picked or skipped. ``tree`` sends the same,
+in the ``platform`` frame, to picking-harvester on ``tree_targets`` (several arms share it; ``--tree N``
+spans the canopy of every arm of ``--platform``/``--layout``). Add ``--ros-args -r __ns:=/arm2``
 to talk to another arm. Ctrl-C cancels the goal: the arm brakes to rest within its
 limits; ``stop`` cancels every goal of the planner and its controller.
 
@@ -82,14 +85,19 @@ def build_parser():
     p.add_argument('--arc', action='store_true', help='same as --method arc (2 poses: through, end)')
     for kind in ('pose', 'pick', 'path'):
         sub.choices[kind].add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
-    p = sub.add_parser('harvest', parents=[common], help="harvest a tree's apples (harvest_targets)")
-    tree = p.add_mutually_exclusive_group(required=True)
-    tree.add_argument('--file', help='a YAML list of apples: [x, y, z] (m) or {position: [...], rpy: [...] (deg)}')
-    tree.add_argument('--tree', type=int, metavar='N', help='a synthetic tree of N apples in the canopy')
-    p.add_argument('--seed', type=int, default=0, help='of the synthetic tree (default 0)')
-    p.add_argument('--rpy', type=float, nargs=3, default=[0.0, 90.0, 0.0], metavar=('R', 'P', 'Y'),
-                   help='grasp orientation of apples given without one, degrees (default 0 90 0: along +x)')
-    p.add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
+    for kind, frame, words in (('harvest', 'base_link', "harvest a tree's apples with this arm (harvest_targets)"),
+                               ('tree', 'platform', "harvest a tree with every arm of the platform (picking-harvester's "
+                                                    'tree_targets)')):
+        p = sub.add_parser(kind, parents=[common], help=words)
+        tree = p.add_mutually_exclusive_group(required=True)
+        tree.add_argument('--file', help='a YAML list of apples: [x, y, z] (m) or {position: [...], rpy: [...] (deg)}')
+        tree.add_argument('--tree', type=int, metavar='N', help='a synthetic tree of N apples in the canopy')
+        p.add_argument('--seed', type=int, default=0, help='of the synthetic tree (default 0)')
+        p.add_argument('--rpy', type=float, nargs=3, default=[0.0, 90.0, 0.0], metavar=('R', 'P', 'Y'),
+                       help='grasp orientation of apples given without one, degrees (default 0 90 0: along +x)')
+        p.add_argument('--frame', default=frame, help=f'frame of the poses (only {frame})')
+    p.add_argument('--platform', help='the platform file whose canopy --tree spans (default: config/platform.yaml)')
+    p.add_argument('--layout', help='its layout (default: its default)')
     sub.add_parser('stop', parents=[common], help='cancel every goal of the planner and its controller (the arm '
                    'brakes to rest)')
     return parser
@@ -197,6 +205,11 @@ def harvest_poses(args):
     if args.tree is not None:
         if args.tree < 1:
             raise ValueError('--tree needs at least one apple')
+        if args.kind == 'tree':
+            from ..platform import Platform
+            from ..resources import config_dir
+            platform = Platform.from_yaml(args.platform or config_dir() / 'platform.yaml', args.layout)
+            return platform.tree(args.tree, seed=args.seed)
         return synthetic_tree(args.tree, seed=args.seed)
     try:
         data = yaml.safe_load(Path(args.file).read_text())
@@ -221,13 +234,16 @@ def harvest_poses(args):
 
 
 def harvest(args, node, poses):
-    """Send a harvest on ``harvest_targets`` and follow it on ``planner_status`` to its end."""
-    pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
+    """Send a harvest on ``harvest_targets`` (a tree on ``tree_targets``) and follow it on
+    ``planner_status`` (``harvester_status``) to its end."""
+    topic, status_topic, who = (('tree_targets', 'harvester_status', 'picking-harvester') if args.kind == 'tree'
+                                else ('harvest_targets', 'planner_status', 'picking-planner'))
+    pub = node.create_publisher(PoseArray, topic, BURST)
     statuses = []
-    node.create_subscription(DiagnosticStatus, 'planner_status', statuses.append, BURST)
-    where = f'{node.get_namespace().rstrip("/")}/harvest_targets'
+    node.create_subscription(DiagnosticStatus, status_topic, statuses.append, BURST)
+    where = f'{node.get_namespace().rstrip("/")}/{topic}'
     if not node.spin_until(lambda: pub.get_subscription_count() > 0, min(DISCOVERY, args.timeout)):
-        print(f'picking-goal: nobody subscribes to {where} yet (is picking-planner running in this namespace, with '
+        print(f'picking-goal: nobody subscribes to {where} yet (is {who} running in this namespace, with '
               f'this ROS_DOMAIN_ID?); waiting up to {args.timeout:g} s', file=sys.stderr, flush=True)
         if not node.spin_until(lambda: pub.get_subscription_count() > 0, max(args.timeout - DISCOVERY, 0.0)):
             print(f'picking-goal: nobody subscribes to {where}', file=sys.stderr)
@@ -235,7 +251,8 @@ def harvest(args, node, poses):
     msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()) for T in poses])
     msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
     key, t_sent, seen = stamp_key(msg.header.stamp), time.monotonic(), 0
-    print(f'sent: a harvest of {len(poses)} apples, goal {key} (planner_status names it so)', flush=True)
+    print(f'sent: a {"tree" if args.kind == "tree" else "harvest"} of {len(poses)} apples, goal {key} '
+          f'({status_topic} names it so)', flush=True)
 
     def news():
         """The next status of this goal (a resend when none came yet: discovery may drop the first)."""
@@ -264,6 +281,10 @@ def harvest(args, node, poses):
             if args.no_wait:
                 return EXIT_OK
     except KeyboardInterrupt:
+        if args.kind == 'tree':
+            print('picking-goal: the arms harvest on; `picking-goal stop --ros-args -r __ns:=/<arm>` stops one',
+                  flush=True)
+            return EXIT_FAILED
         print('stopping the harvest: the arm brakes to rest', flush=True)
         stop(node, args.timeout)
         return EXIT_FAILED
@@ -272,7 +293,7 @@ def harvest(args, node, poses):
 def run(args, node):
     if args.kind == 'stop':
         return stop(node, args.timeout)
-    if args.kind == 'harvest':
+    if args.kind in ('harvest', 'tree'):
         return harvest(args, node, harvest_poses(args))
     if args.kind == 'path' and args.arc:
         args.method = 'arc'
@@ -334,7 +355,7 @@ def main(argv=None):
     if not (np.isfinite(args.timeout) and args.timeout > 0):
         parser.error('--timeout must be > 0 s')
     try:
-        if args.kind == 'harvest':
+        if args.kind in ('harvest', 'tree'):
             harvest_poses(args)
         elif args.kind != 'stop':
             quaternion(args)

@@ -8,6 +8,7 @@ to ``--log-dir`` (and to the terminal with ``--show-logs``).
 
     picking-stack                                  # one arm in the root namespace, until Ctrl-C
     picking-stack --ns /arm2 -p picking_controller:update_rate:=250.0
+    picking-stack --platform                       # every arm of config/platform.yaml and picking-harvester
 
 :class:`Stack` is the same bring-up for Python: the demo, the system tests and the benchmarks
 start the arm through it.
@@ -214,6 +215,68 @@ class Stack:
         return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
 
 
+#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together.
+SHARED_RATES = {'picking-sim': ['-p', 'servo_rate:=250.0', '-p', 'publish_rate:=50.0'],
+                'picking-controller': ['-p', 'update_rate:=100.0']}
+
+
+def ros_value(v):
+    """A parameter value as ``-p name:=value`` takes it (lists in YAML's flow style)."""
+    if isinstance(v, (list, tuple)):
+        return '[' + ','.join(ros_value(x) for x in v) + ']'
+    return str(v).lower() if isinstance(v, bool) else str(v)
+
+
+class PlatformStack:
+    """Every arm of a platform (``config/platform.yaml``, one of its layouts), each a :class:`Stack` in
+    its namespace under ``ns`` with its own planner parameters, and ``picking-harvester`` in ``ns``.
+    ``args`` as for :class:`Stack`, for every arm (default: :data:`SHARED_RATES` with more than one arm)."""
+
+    def __init__(self, platform_file=None, layout=None, ns='/', log_dir='log/stack', args=None, echo=False,
+                 config=None):
+        from ..platform import Platform
+        from ..resources import config_dir
+        self.file = Path(platform_file) if platform_file else Path(config or config_dir()) / 'platform.yaml'
+        self.platform = Platform.from_yaml(self.file, layout)
+        self.ns = '/' + ns.strip('/')
+        if args is None:
+            args = SHARED_RATES if len(self.platform.arms) > 1 else {}
+        self.arms = []
+        for m in self.platform.arms:
+            extra = {name: list(a) for name, a in args.items()}
+            extra.setdefault('picking-planner', [])
+            for k, v in m.params.items():
+                extra['picking-planner'] += ['-p', f'{k}:={ros_value(v)}']
+            self.arms.append(Stack(f'{self.ns.rstrip("/")}/{m.namespace}', log_dir, args=extra, config=config,
+                                   echo=echo))
+        self.log_dir = Path(log_dir) / (self.ns.strip('/') or 'root')
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        harvester = ['--ros-args', '-r', f'__ns:={self.ns}', '-p', f'platform_file:={self.file}']
+        if layout:
+            harvester += ['-p', f'layout:={layout}']
+        self.harvester = NodeProcess('picking-harvester', harvester, self.log_dir / 'picking-harvester.log', echo=echo)
+
+    @property
+    def processes(self):
+        return [self.harvester] + [p for s in self.arms for p in s.processes]
+
+    def alive(self):
+        out = {'picking-harvester': self.harvester.alive()}
+        for s in self.arms:
+            out.update({f'{s.ns}/{n}': up for n, up in s.alive().items()})
+        return out
+
+    def wait_ready(self, timeout=90.0):
+        for s in self.arms:
+            s.wait_ready(timeout)
+        if not self.harvester.alive():
+            raise RuntimeError(f'picking-harvester exited (see {self.log_dir})')
+
+    def stop(self, timeout=10.0):
+        procs = self.processes
+        return {f'{p.name} ({p.pid})': code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
+
+
 def overrides(items):
     """``-p node:name:=value`` items as extra ROS arguments per executable."""
     by_node = {node: exe for exe, (node, _) in NODES.items()}
@@ -240,6 +303,10 @@ def main(argv=None):
     parser.add_argument('--for', dest='duration', type=float, metavar='S',
                         help='stop after S seconds up (default: run until Ctrl-C)')
     parser.add_argument('--timeout', type=float, default=60.0, help='s to wait for the arm to come up')
+    parser.add_argument('--platform', nargs='?', const='', metavar='FILE',
+                        help='every arm of a platform (default file: config/platform.yaml) in its namespace under --ns, '
+                             'and picking-harvester, the coordinator of their harvest')
+    parser.add_argument('--layout', help='the layout of the platform file (default: its default)')
     parser.add_argument('--paper', action='store_true',
                         help="the paper's interpolation methods (config/paper_methods.yaml) instead of the shipped "
                              'jerk-limited, blended ones')
@@ -258,13 +325,24 @@ def main(argv=None):
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stopping.set())
     files = {'picking-planner': NODES['picking-planner'][1] + ('paper_methods.yaml',)} if args.paper else None
-    stack = Stack(args.ns, args.log_dir, args=extra, files=files, echo=args.show_logs)
-    for name, p in stack.nodes.items():
+    if args.platform is not None:
+        try:
+            stack = PlatformStack(args.platform or None, args.layout, args.ns, args.log_dir, args=extra or None,
+                                  echo=args.show_logs)
+        except (OSError, ValueError) as exc:
+            parser.error(str(exc))
+        started = {f'{p.name} ({p.log_path.parent.name})': p for p in stack.processes}
+    else:
+        stack = Stack(args.ns, args.log_dir, args=extra, files=files, echo=args.show_logs)
+        started = stack.nodes
+    for name, p in started.items():
         print(f'picking-stack: started {name} (pid {p.pid})', flush=True)
     code = 0
     try:
         stack.wait_ready(args.timeout)
-        print(f'picking-stack: the arm in {stack.ns} is up (domain {os.environ.get("ROS_DOMAIN_ID", "0")}): '
+        what = (f'{len(stack.arms)} arms and picking-harvester in {stack.ns} are' if args.platform is not None
+                else f'the arm in {stack.ns} is')
+        print(f'picking-stack: {what} up (domain {os.environ.get("ROS_DOMAIN_ID", "0")}): '
               f'the controller holds it, the planner listens. Logs: {stack.log_dir}. Ctrl-C stops it.', flush=True)
         end = time.monotonic() + args.duration if args.duration is not None else float('inf')
         while not stopping.is_set() and time.monotonic() < end:
@@ -280,7 +358,8 @@ def main(argv=None):
     finally:
         codes = stack.stop()
         for name, c in codes.items():
-            print(f'picking-stack: stopped {name} (pid {stack.nodes[name].pid}): exit code {c}', flush=True)
+            pid = f' (pid {stack.nodes[name].pid})' if name in getattr(stack, 'nodes', {}) else ''
+            print(f'picking-stack: stopped {name}{pid}: exit code {c}', flush=True)
     return code if all(c == 0 for c in codes.values()) else 1
 
 

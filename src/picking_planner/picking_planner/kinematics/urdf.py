@@ -137,3 +137,37 @@ def default_tip(links, joints, base: str):
     if len(below) != 1:
         raise ValueError(f'cannot pick the tool link: leaves below {base!r} are {below}; name it with tip=')
     return below[0]
+
+
+@dataclass(frozen=True)
+class UrdfCapsule:
+    """A link's collision cylinder (read as a capsule along its axis) or sphere (a capsule of length 0), m."""
+
+    link: str
+    origin: np.ndarray          # 4x4 transform link -> shape; the capsule's axis is its z
+    radius: float
+    length: float
+
+
+def parse_collisions(text: str):
+    """Every ``<collision>`` cylinder and sphere of the URDF's links, as :class:`UrdfCapsule`.
+    Other shapes (box, mesh) raise ValueError: bound them with a cylinder."""
+    root = ET.fromstring(text)
+    out = []
+    for link in root.findall('link'):
+        name = link.get('name')
+        for el in link.findall('collision'):
+            o = el.find('origin')
+            xyz = _floats(o.get('xyz', '0 0 0'), 3, f'link {name!r} collision origin xyz') if o is not None else np.zeros(3)
+            rpy = _floats(o.get('rpy', '0 0 0'), 3, f'link {name!r} collision origin rpy') if o is not None else np.zeros(3)
+            geometry = el.find('geometry')
+            shape = geometry[0] if geometry is not None and len(geometry) else None
+            if shape is None or shape.tag not in ('cylinder', 'sphere'):
+                raise ValueError(f'link {name!r}: collision geometry must be a cylinder or a sphere, '
+                                 f'got {None if shape is None else shape.tag!r}')
+            radius = float(shape.get('radius', 'nan'))
+            length = float(shape.get('length', '0')) if shape.tag == 'cylinder' else 0.0
+            if not (radius > 0 and length >= 0):
+                raise ValueError(f'link {name!r}: collision {shape.tag} needs radius > 0 (and length >= 0), m')
+            out.append(UrdfCapsule(name, origin_matrix(xyz, rpy), radius, length))
+    return out
