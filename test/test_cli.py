@@ -14,8 +14,8 @@ from rosstack import BIN
 
 ROOT = Path(__file__).resolve().parents[1]
 TOOLS = ('picking-stack', 'picking-goal', 'picking-plan', 'picking-demo', 'picking-sim', 'picking-controller',
-         'picking-planner')
-SUBCOMMANDS = [('picking-goal', s) for s in ('pose', 'pick', 'path', 'harvest', 'stop')] + \
+         'picking-planner', 'picking-harvester')
+SUBCOMMANDS = [('picking-goal', s) for s in ('pose', 'pick', 'path', 'harvest', 'tree', 'stop')] + \
     [('picking-plan', s) for s in ('cubic', 'quintic', 'lspb', 'via-lspb', 'quintic-via', 'arc', 'workspace')]
 
 
