@@ -27,8 +27,9 @@ from .platform import ArmSchedule, Closest
 #: the planning time they expect), until an arm's own lead is seen.
 LEAD = 3.0
 #: s between the starts of the arms' first parts in a round: their planners plan and send one after
-#: another instead of at once.
-STAGGER = 1.0
+#: another instead of at once (a long plan reaching its controller after its start is planned again,
+#: later).
+STAGGER = 3.0
 #: s after the last apple of a part comes in hand that the next part is sent (it must be planned and
 #: delivered before that apple is in the box).
 IN_HAND = 0.2
@@ -315,8 +316,8 @@ class PlatformRun:
                     self.events.append(('WARN', f'{a.namespace}: part {a.sent_parts} started '
                                                 f'{start - a.start - off:+.3f} s from its planned time'))
                     a.start = start - off
-            if np.isnan(a.first_start):
-                a.first_start = start
+            if np.isnan(a.first_start) or a.sent_parts == 1 and not a.picked:
+                a.first_start = start          # (its first plan again, if that came late)
         self._check(k, start)
 
     def _check(self, k, since):

@@ -16,7 +16,9 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
-#: s the controller has to answer a plan (accept it or not) before the goal is aborted.
+#: s the controller has to answer a plan (accept it or not) before the goal is aborted; a plan that
+#: starts later than that (a long harvest, planned well ahead) may be answered until its start: a
+#: long goal takes long to deliver on a busy machine, and answered later it is refused as late.
 RESPONSE_LIMIT = 3.0
 #: s after a plan's end that its result may take (the controller's goal time tolerance and
 #: settling included) before the goal is aborted.
@@ -152,12 +154,13 @@ class Lifecycle:
 
     def overdue(self, wall, now):
         """Flights the controller left unanswered too long, removed, with an Ending each: no
-        goal response RESPONSE_LIMIT s after sending, or no result RESULT_MARGIN s after the
-        plan's end (controller time ``now``)."""
+        goal response RESPONSE_LIMIT s after sending and by the plan's start, or no result
+        RESULT_MARGIN s after the plan's end (controller time ``now``)."""
         ended = []
         for key, flight in list(self.flights.items()):
-            if flight.state == 'sent' and wall - flight.sent > RESPONSE_LIMIT:
-                why = f'the controller did not answer the plan within {RESPONSE_LIMIT:g} s'
+            if flight.state == 'sent' and wall - flight.sent > RESPONSE_LIMIT and now > flight.start:
+                why = (f'the controller did not answer the plan within {wall - flight.sent:.1f} s (by its start, '
+                       f'and at least {RESPONSE_LIMIT:g} s)')
             elif flight.state != 'sent' and now > flight.start + flight.duration + RESULT_MARGIN:
                 why = f'no result from the controller {RESULT_MARGIN:g} s after the plan\'s end'
             else:

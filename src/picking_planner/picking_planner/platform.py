@@ -118,7 +118,7 @@ def _wire(T):
 
 #: Apples an arm's planner is sent at once: the next part goes out while the last apple of this one is in
 #: hand, and the planner starts it when that apple is in the box (a harvest replacing one).
-CHUNK = 100
+CHUNK = 25
 
 
 @dataclass
@@ -536,7 +536,7 @@ class Coordinator:
     def _options(self, arms, t, k, j, d, reach, tree, starts, fixed):
         """The ways of settling the conflict of arms ``k`` and ``j`` at ``t`` that move the first conflict
         later: ``[(makespan, words, arms, postponed)]``."""
-        (xk, since_k), (xj, since_j) = self._activity(arms[k], t), self._activity(arms[j], t)
+        since_k, since_j = self._activity(arms[k], t)[1], self._activity(arms[j], t)[1]
         # The arm that came second yields (an arm going home after its last apple cannot).
         y, o = (j, k) if since_j >= since_k else (k, j)
         (xy, _), (xo, _) = self._activity(arms[y], t), self._activity(arms[o], t)

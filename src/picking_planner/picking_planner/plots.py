@@ -180,6 +180,41 @@ def plot_corners(path, corners, tracks, title, window=0.05, caption=None):
     return Path(path)
 
 
+def plot_platform(path, apples, by_arm, skipped, tools, bases, drawn, title):
+    """A tree harvested by several arms, from the front (y-z) and from above (y-x), platform frame:
+    each arm's apples (numbered in its picking order) and tool path in its colour, the arms' bases,
+    and the arms' links (``drawn``: ``(arm, points)``) at a few grasps."""
+    plt = _pyplot()
+    p = np.array([T[:3, 3] for T in apples])
+    colours = dict(zip(by_arm, ('tab:red', 'tab:blue', 'tab:green', 'tab:purple')))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
+    for ax, (i, j), (xl, yl) in zip(axes, ((1, 2), (1, 0)), (('y [m]', 'z [m]'), ('y [m]', 'x [m]'))):
+        for ns, picked in by_arm.items():
+            c = colours[ns]
+            if len(tools.get(ns, ())):
+                ax.plot(tools[ns][:, i], tools[ns][:, j], color=c, lw=0.5, alpha=0.45)
+            ax.scatter(p[picked, i], p[picked, j], s=70, color=c, zorder=3, label=f'{ns}: {len(picked)} apples')
+            for n, k in enumerate(picked):
+                ax.annotate(str(n + 1), p[k, [i, j]], textcoords='offset points', xytext=(5, 5), fontsize=7, color=c)
+        if skipped:
+            ax.scatter(p[skipped, i], p[skipped, j], s=70, color='0.6', marker='X', zorder=3, label='left on the tree')
+        for ns, pts in drawn:
+            ax.plot(pts[:, i], pts[:, j], color=colours[ns], lw=3, alpha=0.8, solid_capstyle='round')
+        b = np.array(bases)
+        ax.scatter(b[:, i], b[:, j], s=160, marker='s', color='k', zorder=4, label='arm bases')
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title('front view (y, z): apples, tool paths, arms at grasps')
+    axes[1].set_title('top view (y, x)')
+    fig.suptitle(title)
+    legend_below(fig, axes[0])
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_harvest(path, apples, order, skipped, tool, title):
     """A harvested tree from the front (y-z) and from above (x-y): the apples numbered in the order
     they were picked (skipped ones grey), the tool's path over the whole harvest."""

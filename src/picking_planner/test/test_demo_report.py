@@ -91,3 +91,22 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
     assert [p.x for p in order.points] == [apples[2][0, 3], apples[0][0, 3]]
     tool = np.array([T[:3, 3] for T in apples])
     assert plot_harvest(tmp_path / 'h.png', apples, [2, 0], [1], tool, 'a tree').stat().st_size > 10_000
+
+
+def test_the_platform_figure_draws_each_arms_apples_path_and_links(tmp_path):
+    from picking_planner.platform import Coordinator, Platform
+    from picking_planner.plots import plot_platform
+    from picking_planner.cli.demo_platform import _grasp_drawings
+    platform = Platform.from_yaml(config_dir() / 'platform.yaml', 'two')
+    coordinator = Coordinator.from_platform(platform)
+    tree = platform.tree(6, seed=1)
+    by_arm = {'arm1': [i for i, T in enumerate(tree) if T[1, 3] < 0], 'arm2': [i for i, T in enumerate(tree) if T[1, 3] >= 0]}
+    drawn = _grasp_drawings(coordinator, tree, by_arm)
+    assert len(drawn) == 4 and all(points.shape == (8, 3) for _, points in drawn)
+    # The links end at the apple: the last joint origin is the grasp point.
+    first = by_arm['arm1'][0]
+    assert np.allclose(drawn[0][1][-1], tree[first][:3, 3], atol=1e-6)
+    tools = {ns: np.array([T[:3, 3] for T in tree]) for ns in by_arm}
+    path = plot_platform(tmp_path / 'platform.png', tree, by_arm, [], tools,
+                         [m.base[:3, 3] for m in platform.arms], drawn, 'two arms')
+    assert path.stat().st_size > 10_000

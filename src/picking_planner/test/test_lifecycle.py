@@ -62,6 +62,10 @@ def test_an_unanswered_plan_ends_aborted_with_the_reason():
     ended = life.overdue(20.0, 102.0 + RESULT_MARGIN + 0.1)
     assert [f.goal.key for f, _ in ended] == ['stuck'] and 'no result' in ended[0][1].message
     assert not life.flights
+    # A plan that starts later than the limit may be answered until its start.
+    life.sent(flight('ahead', start=120.0, sent=10.0))
+    assert life.overdue(10.0 + RESPONSE_LIMIT + 5.0, 115.0) == []
+    assert [f.goal.key for f, _ in life.overdue(10.0 + RESPONSE_LIMIT + 11.0, 120.5)] == ['ahead']
 
 
 def test_one_plan_at_a_time_waits_for_the_controllers_answer():

@@ -4,9 +4,10 @@ Starts the simulator, the controller and the planner as separate processes
 (loopback-only DDS, a domain of the run's own), sends the pick cycle through
 ``pick_target`` as a user would, records everything to an MCAP file, stops
 every process by its pid, and writes a report and plots to ``--out``. Then the
-paper's Sec. 3.1 arc as a second scenario, and the same cycle planned with
-cubic, quintic and LSPB segments side by side. Exit code 0 only if every step
-worked.
+paper's Sec. 3.1 arc as a second scenario, the same cycle planned with
+cubic, quintic and LSPB segments side by side, a tree harvested by the arm
+(scenario 3), and a wider tree harvested by two arms (scenario 4,
+``picking-stack --platform``). Exit code 0 only if every step worked.
 """
 
 from __future__ import annotations
@@ -193,6 +194,21 @@ def run_harvest_scenario(demo, spin_until, rec, node):
     return {'goal': key, 'trajectory_index': first, 'apples': n, 'seed': seed, 'wall': time.monotonic() - t0}
 
 
+def run_platform(rec, events, config, out, demo):
+    """Scenario 4 after the one-arm scenarios (their stack stopped): its section appended to the report."""
+    from .demo_platform import run_platform_scenario
+    from .demo_report import harvest_statuses
+    if 'harvest' in events:
+        rate = harvest_statuses(rec, events['harvest']['goal'])['final'].get('apples_per_hour')
+        demo = dict(demo, one_arm_rate=float(rate) if rate else None)
+    lines, files, checks = run_platform_scenario(config, out, demo)
+    report = out / 'report.md'
+    report.write_text(report.read_text() + '\n'.join(lines + ['', *[f'- `{f}`' for f in files]]) + '\n')
+    print('\n'.join(lines))
+    events['platform'] = checks
+    return all(checks.values())
+
+
 #: Status values that name something (a goal, a trajectory by its stamp): text, never numbers.
 NAMES = ('goal', 'trajectory', 'stamp')
 
@@ -212,7 +228,8 @@ def _numbers(value):
 
 
 #: What a run writes into --out (removed first, so that nothing left from an earlier run is taken for this one's).
-OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png')
+OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png',
+           'harvest.png', 'platform.png', 'platform.mcap')
 #: Lines of each node's log quoted in the report of a failed run.
 LOG_TAIL = 30
 
@@ -257,6 +274,8 @@ def main(argv=None):
     if events['ok']:
         log('analysing the run')
         report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick)
+        if not args.quick:
+            report_ok = run_platform(rec, events, config, args.out, demo) and report_ok
     else:
         failure_report(rec, events, args.out)
     summary = {'ok': bool(ok and report_ok), 'events': _numbers({k: v for k, v in events.items() if k != 'plan'}),

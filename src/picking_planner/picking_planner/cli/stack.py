@@ -215,9 +215,10 @@ class Stack:
         return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
 
 
-#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together.
+#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together, and
+#: the feedback watchdog allowing for a simulator that the busy host holds up for over half a second.
 SHARED_RATES = {'picking-sim': ['-p', 'servo_rate:=250.0', '-p', 'publish_rate:=50.0'],
-                'picking-controller': ['-p', 'update_rate:=100.0']}
+                'picking-controller': ['-p', 'update_rate:=100.0', '-p', 'state_timeout:=1.0']}
 
 
 def ros_value(v):
