@@ -375,6 +375,10 @@ class PlatformRun:
     def picked(self):
         return sum(len(a.picked) for a in self.arms)
 
+    def faulted(self):
+        """The apples left on the tree for a fault (tried as often as allowed, or a stop), not for reach."""
+        return sorted(i for i, why in self.skipped.items() if why.startswith('tried') or 'canceled' in why)
+
     def finished(self):
         return all(a.state == 'idle' for a in self.arms) and not self.open
 

@@ -138,7 +138,7 @@ class HarvesterNode(Node):
         if run.end is not None and not getattr(run, 'reported', False):
             run.reported = True
             s = run.summary()
-            state = 'succeeded' if not run.failed and not run.stops else 'aborted'
+            state = 'aborted' if run.faulted() else 'succeeded'   # (stops and retries that still picked it all: reported)
             values = dict(goal=self.key, state=state, apples=s['apples'], picked=s['picked'],
                           harvest_time=s['harvest_time'], apples_per_hour=s['apples_per_hour'], rounds=s['rounds'],
                           closest_planned=s['closest_planned'], closest_measured=s['closest_measured'],

@@ -42,6 +42,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy.action import ActionClient
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from scipy.spatial.transform import Rotation
@@ -365,7 +366,9 @@ def main(argv=None):
     node = GoalClient(f'picking_goal_{os.getpid()}')
     try:
         return run(args, node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
+        # (SIGTERM, as `timeout` sends it, shuts rclpy down under a waiting spin.)
+        print('picking-goal: stopped before the goal ended', file=sys.stderr)
         return EXIT_TIMEOUT
     finally:
         node.destroy_node()

@@ -215,10 +215,12 @@ class Stack:
         return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
 
 
-#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together, and
-#: the feedback watchdog allowing for a simulator that the busy host holds up for over half a second.
+#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together, the
+#: feedback watchdog allowing for a simulator that the busy host holds up for over half a second, and
+#: plans starting a second later (a long harvest plan takes seconds to reach a busy controller).
 SHARED_RATES = {'picking-sim': ['-p', 'servo_rate:=250.0', '-p', 'publish_rate:=50.0'],
-                'picking-controller': ['-p', 'update_rate:=100.0', '-p', 'state_timeout:=1.0']}
+                'picking-controller': ['-p', 'update_rate:=100.0', '-p', 'state_timeout:=1.0'],
+                'picking-planner': ['-p', 'start_delay:=1.0']}
 
 
 def ros_value(v):
@@ -245,7 +247,7 @@ class PlatformStack:
         self.arms = []
         for m in self.platform.arms:
             extra = {name: list(a) for name, a in args.items()}
-            extra.setdefault('picking-planner', [])
+            extra['picking-planner'] = list(extra.get('picking-planner', []))
             for k, v in m.params.items():
                 extra['picking-planner'] += ['-p', f'{k}:={ros_value(v)}']
             self.arms.append(Stack(f'{self.ns.rstrip("/")}/{m.namespace}', log_dir, args=extra, config=config,
