@@ -88,9 +88,10 @@ def goal_examples():
 
 
 def test_every_picking_goal_example_reaches_its_goal_on_a_running_arm(tmp_path):
-    """They need the nodes: against a stack brought up as the README says."""
+    """They need the nodes: against a stack brought up as the README says. (`picking-goal tree` needs a
+    platform of arms and its coordinator: test_platform.py runs it on one.)"""
     from picking_planner.cli.stack import Stack
-    found = goal_examples()
+    found = [line for line in goal_examples() if not line.startswith('picking-goal tree')]
     assert len(found) >= 6
     stack = Stack('/cli', tmp_path)
     try:
