@@ -50,7 +50,9 @@ def deviations(trajectory, commands, until, caught_up=0.0):
     rows = {k: np.array([getattr(p, k) for p in trajectory.points])
             for k in ('positions', 'velocities', 'accelerations')}
     plans = [BPoly.from_derivatives(t, np.stack([rows[k][:, j] for k in rows], axis=1)) for j in range(len(names))]
-    steps = t[1:][np.diff(t) < 2e-6]
+    # Where the acceleration steps (two points a microsecond apart), and the plan's ends (a cubic or LSPB
+    # plan starts and ends at full acceleration, the hold before and after at none): two-valued there.
+    steps = np.r_[t[0], t[1:][np.diff(t) < 2e-6], t[-1]]
     worst, count = np.zeros(3), 0
     for msg in commands:
         tau = since(msg.header.stamp, trajectory.header.stamp)
