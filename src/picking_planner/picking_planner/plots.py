@@ -180,15 +180,39 @@ def plot_corners(path, corners, tracks, title, window=0.05, caption=None):
     return Path(path)
 
 
+#: The two views of a tree: (column of the horizontal axis, of the vertical axis, their labels, the title).
+TREE_VIEWS = ((1, 2, 'y [m]', 'z [m]', 'front view (y, z)'), (1, 0, 'y [m]', 'x [m]', 'top view (y, x)'))
+
+
+def _tree_figure(path, draw, title, front, figsize):
+    """A tree from the front (y-z) and from above (y-x): ``draw(ax, i, j)`` draws one view with
+    columns i, j of the points; ``front`` titles the front view."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    for ax, (i, j, xl, yl, name) in zip(axes, TREE_VIEWS):
+        draw(ax, i, j)
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.grid(True, alpha=0.3)
+        ax.set_title(name)
+    axes[0].set_title(front)
+    fig.suptitle(title)
+    legend_below(fig, axes[0])
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_platform(path, apples, by_arm, skipped, tools, bases, drawn, title):
     """A tree harvested by several arms, from the front (y-z) and from above (y-x), platform frame:
     each arm's apples (numbered in its picking order) and tool path in its colour, the arms' bases,
     and the arms' links (``drawn``: ``(arm, points)``) at a few grasps."""
-    plt = _pyplot()
     p = np.array([T[:3, 3] for T in apples])
     colours = dict(zip(by_arm, ('tab:red', 'tab:blue', 'tab:green', 'tab:purple')))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
-    for ax, (i, j), (xl, yl) in zip(axes, ((1, 2), (1, 0)), (('y [m]', 'z [m]'), ('y [m]', 'x [m]'))):
+    b = np.array(bases)
+
+    def draw(ax, i, j):
         for ns, picked in by_arm.items():
             c = colours[ns]
             if len(tools.get(ns, ())):
@@ -200,28 +224,16 @@ def plot_platform(path, apples, by_arm, skipped, tools, bases, drawn, title):
             ax.scatter(p[skipped, i], p[skipped, j], s=70, color='0.6', marker='X', zorder=3, label='left on the tree')
         for ns, pts in drawn:
             ax.plot(pts[:, i], pts[:, j], color=colours[ns], lw=3, alpha=0.8, solid_capstyle='round')
-        b = np.array(bases)
         ax.scatter(b[:, i], b[:, j], s=160, marker='s', color='k', zorder=4, label='arm bases')
-        ax.set_xlabel(xl)
-        ax.set_ylabel(yl)
-        ax.set_aspect('equal', adjustable='datalim')
-        ax.grid(True, alpha=0.3)
-    axes[0].set_title('front view (y, z): apples, tool paths, arms at grasps')
-    axes[1].set_title('top view (y, x)')
-    fig.suptitle(title)
-    legend_below(fig, axes[0])
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _tree_figure(path, draw, title, 'front view (y, z): apples, tool paths, arms at grasps', (12, 5.4))
 
 
 def plot_harvest(path, apples, order, skipped, tool, title):
     """A harvested tree from the front (y-z) and from above (x-y): the apples numbered in the order
     they were picked (skipped ones grey), the tool's path over the whole harvest."""
-    plt = _pyplot()
     p = np.array([T[:3, 3] for T in apples])
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
-    for ax, (i, j), (xl, yl) in zip(axes, ((1, 2), (1, 0)), (('y [m]', 'z [m]'), ('y [m]', 'x [m]'))):
+
+    def draw(ax, i, j):
         ax.plot(tool[:, i], tool[:, j], color='tab:blue', lw=0.6, alpha=0.6, label='tool path')
         ax.plot(p[order, i], p[order, j], color='tab:green', lw=1.2, ls='--', label='visiting order')
         picked = [k for k in range(len(p)) if k not in skipped]
@@ -230,14 +242,4 @@ def plot_harvest(path, apples, order, skipped, tool, title):
             ax.scatter(p[skipped, i], p[skipped, j], s=90, color='0.6', marker='X', zorder=3, label='skipped')
         for n, k in enumerate(order):
             ax.annotate(str(n + 1), p[k, [i, j]], textcoords='offset points', xytext=(6, 6), fontsize=8)
-        ax.set_xlabel(xl)
-        ax.set_ylabel(yl)
-        ax.set_aspect('equal', adjustable='datalim')
-        ax.grid(True, alpha=0.3)
-    axes[0].set_title('front view (y, z)')
-    axes[1].set_title('top view (y, x)')
-    fig.suptitle(title)
-    legend_below(fig, axes[0])
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _tree_figure(path, draw, title, 'front view (y, z)', (11, 5.2))
