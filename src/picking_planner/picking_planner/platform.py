@@ -144,11 +144,6 @@ class SharePlan:
         """s to the end of the last part (its way home)."""
         return self.chunks[-1][2] + self.chunks[-1][1].plan.duration if self.chunks else 0.0
 
-    def chunk_at(self, t):
-        """The index of the part running at ``t`` s from the share's start."""
-        offsets = [off for _, _, off in self.chunks]
-        return max(int(np.searchsorted(offsets, t, side='right')) - 1, 0)
-
     def sample(self, t):
         """Positions (arm joints and gripper) at times ``t`` (s from the share's start): each part until
         the next takes over; after the last, its end."""
@@ -237,7 +232,6 @@ class Coordinator:
         self.platform, self.harvests = platform, list(harvests)
         self.capsules = [ArmCapsules.from_arm(h.arm) for h in harvests]
         self.clearance, self.slack, self.sample, self.chunk = clearance, slack, sample, chunk
-        self._rests = None
 
     @classmethod
     def from_platform(cls, platform, config=None, **kwargs):
@@ -362,13 +356,14 @@ class Coordinator:
             q = a.plan.sample(np.asarray(times) - a.start)
         return self.capsules[k].segments(np.asarray(q)[:, :h.arm.dof], self.platform.arms[k].base)
 
-    def closest(self, arms, horizon=None):
+    def closest(self, arms, horizon=None, rests=None):
         """The closest approach between every two of the :class:`ArmSchedule` s ``arms`` over the
         schedule (any start offset within ``slack``), and every time below the clearance, earliest first:
-        ``(Closest, conflicts)`` with conflicts ``[(t, k, j, distance)]``."""
+        ``(Closest, conflicts)`` with conflicts ``[(t, k, j, distance)]``. ``rests``: where each arm that
+        has no plan stays (default: home)."""
         end = max([a.end for a in arms] + [0.0]) if horizon is None else horizon
         times = np.arange(0.0, end + self.sample, self.sample)
-        rests = self._rests or [None] * len(arms)
+        rests = rests or [None] * len(arms)
         S = [self.samples(k, a, times, rests[k]) for k, a in enumerate(arms)]
         # How far any capsule end moves between two samples: allowed for on top of the clearance.
         moved = [np.r_[0.0, np.abs(np.diff(s, axis=0)).max(axis=(1, 2, 3)) * np.sqrt(3)] for s in S]
@@ -432,7 +427,7 @@ class Coordinator:
         fixed = fixed or {}
         if starts is None:
             starts = [(h.home, np.zeros(h.arm.dof), np.zeros(h.arm.dof)) for h in self.harvests]
-        self._rests = [np.asarray(s[0], float) for s in starts]
+        rests = [np.asarray(s[0], float) for s in starts]     # where an arm given no apples stays
         reach = self.reach(tree, only)
         later = set().union(*(reach[k] for k in fixed)) if fixed else set()
         for k in fixed:                                   # a running arm takes no apples
@@ -455,7 +450,7 @@ class Coordinator:
         self._balance(arms, reach, tree, starts, fixed)
         decisions = []
         for _ in range(MAX_DECISIONS):
-            closest, conflicts = self.closest(arms)
+            closest, conflicts = self.closest(arms, rests=rests)
             if not conflicts:
                 break
             t, k, j, d = conflicts[0]
@@ -466,7 +461,7 @@ class Coordinator:
             arms = new_arms
             postponed += new_postponed
             decisions.append(words)
-        closest, conflicts = self.closest(arms)
+        closest, conflicts = self.closest(arms, rests=rests)
         if conflicts:
             raise RuntimeError(f'arms still conflict after {len(decisions)} decisions: {closest.words()}')
         return Schedule(arms, sorted(skipped, key=lambda s: s.index), postponed, decisions, closest)
@@ -549,7 +544,7 @@ class Coordinator:
         options = []
 
         def tried(new, words, post=()):
-            c, conflicts = self.closest(new)
+            c, conflicts = self.closest(new, rests=[np.asarray(x[0], float) for x in starts])
             if not conflicts or conflicts[0][0] > t + 1e-6:
                 ms = max(a.end for a in new if a.plan is not None)
                 options.append((ms + 60.0 * len(post), words, new, list(post)))
