@@ -85,7 +85,7 @@ class Client(Node):
         self._planner_sub = self.create_subscription(DiagnosticStatus, 'planner_status',
                                                      self._rec(self.planner_status, self._tally), STATUSES)
         self._controller_sub = self.create_subscription(DiagnosticStatus, 'controller_status',
-                                                        self._rec(self.controller_status), RELIABLE)
+                                                        self._rec(self.controller_status), BURST)
         self.pub_pose = self.create_publisher(PoseStamped, 'goal_pose', BURST)
         self.pub_path = self.create_publisher(PoseArray, 'goal_path', BURST)
         self.pub_pick = self.create_publisher(PoseStamped, 'pick_target', BURST)

@@ -37,7 +37,7 @@ from picking_common.loop_stats import LoopStats
 from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status
-from picking_common.topics import RELIABLE, LatestMessage, newest_waiting
+from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
 from picking_planner.kinematics import ArmModel
 from picking_planner.resources import default_urdf
 
@@ -73,7 +73,8 @@ class ControllerNode(Node):
         self.lock = threading.Lock()
         self.add_on_set_parameters_callback(self._on_parameters)
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
-        self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', RELIABLE)
+        # Each status is an event (accepted, goal reached, ...): a slow reader must not lose one.
+        self.pub_status = self.create_publisher(DiagnosticStatus, 'controller_status', BURST)
         self.pub_loop = self.create_publisher(DiagnosticStatus, 'controller_loop', RELIABLE)
         self.codec = Codec()
         self._splice_delay = 0.02       # s ahead that a new trajectory takes over (see _on_trajectory)
