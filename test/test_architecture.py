@@ -19,14 +19,17 @@ PURE_CORE = ('picking_planner.trajectory', 'picking_planner.geometry', 'picking_
              'picking_planner.compiled', 'picking_controller.core', 'picking_controller.events',
              'picking_controller.validation', 'picking_controller.splicing', 'picking_controller.monitoring',
              'picking_controller.limiting', 'picking_controller.sampler', 'picking_controller.goals',
-             'picking_planner.lifecycle', 'picking_sim.servo')
+             'picking_planner.lifecycle', 'picking_sim.servo', 'picking_planner.collision',
+             'picking_planner.approaches', 'picking_sim.witness')
 #: Modules that speak ROS: the middleware and message packages.
 ROS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs',
        'trajectory_msgs', 'diagnostic_msgs', 'visualization_msgs', 'control_msgs', 'action_msgs',
        'picking_interfaces', 'picking_common')
-#: What the controller and the simulator may take from the planner package: its maths.
+#: What the controller and the simulator may take from the planner package: its maths, and the scene
+#: the simulator watches the arm against as a witness (its geometry and its message form).
 PLANNER_MATHS = ('picking_planner.trajectory', 'picking_planner.kinematics', 'picking_planner.geometry',
-                 'picking_planner.resources', 'picking_planner.compiled')
+                 'picking_planner.resources', 'picking_planner.compiled', 'picking_planner.collision',
+                 'picking_planner.scene_msgs')
 
 
 def module_name(path):

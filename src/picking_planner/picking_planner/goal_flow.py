@@ -26,6 +26,7 @@ from picking_common.topics import newest_waiting
 
 from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
 from .harvest import Harvest, HarvestGoal, HarvestRun
+from .collision import Allowed
 from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
@@ -92,13 +93,18 @@ class GoalFlow:
     def _plan_pick(self, target):
         self._check_frame(target.header)
         pose = msg_pose(target.pose)
-        return lambda start, gripper: PickCycle(self.planner, self.pick).plan(start, pose, gripper_start=gripper)
+
+        def plan(start, gripper):
+            return PickCycle(self.planner, self.pick, self.world.checker).plan(start, pose, gripper_start=gripper)
+        plan.apples = [pose]
+        return plan
 
     def _plan_harvest(self, targets):
         self._check_frame(targets.header)
         if not targets.poses:
             raise ValueError('the harvest has no apples (an empty PoseArray)')
-        return HarvestGoal(Harvest(PickCycle(self.planner, self.pick)), [msg_pose(p) for p in targets.poses])
+        return HarvestGoal(Harvest(PickCycle(self.planner, self.pick, self.world.checker)),
+                           [msg_pose(p) for p in targets.poses])
 
     def _after_apple_in_hand(self, t):
         """A harvest replacing the running one starts when its apple in hand is in the box."""
@@ -311,6 +317,13 @@ class GoalFlow:
         except (ValueError, Unreachable) as exc:
             self._end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
+        # Every plan is checked against the world before it is sent (a pick's cycles were planned clear of
+        # it; this also catches a pose or path goal's plan, and a harvest's way home).
+        regions = [Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in getattr(goal.plan, 'apples', ())]
+        contact = self.world.check(plan.trajectory, regions)
+        if contact is not None:
+            self._end(goal, Ending(Outcome.REFUSED, f'the plan would hit an obstacle: {contact}'))
+            return
         planning_ms = (time.perf_counter() - t0) * 1e3
         names = list(plan.joint_names or self.names)
         period = self.planner.settings.sample_period
@@ -377,7 +390,8 @@ class GoalFlow:
         flight.handle = handle
         if flight.cancel:
             handle.cancel_goal_async()
-        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s")
+        around = f", {flight.extra['approach']}" if 'approach' in flight.extra else ''
+        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s{around}")
         handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
 
     def _on_feedback(self, goal, msg):

@@ -17,6 +17,7 @@ goal. Every parameter is validated when it is set.
 
 from __future__ import annotations
 
+import threading
 import time
 from functools import partial
 
@@ -30,24 +31,27 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, GoalResponse
 from rclpy.node import Node
 from scipy.spatial.transform import Rotation
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
 
 from picking_common.codec import Codec
 from picking_common.params import declare, usage
 from picking_common.joint_state import reorder
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level
-from picking_common.topics import BURST, RELIABLE, LatestMessage
+from picking_common.topics import BURST, LATCHED, NEWEST, RELIABLE, LatestMessage
 
+from .collision import Scene, World
 from .goal_flow import GoalFlow
 from .goal_policy import GoalPolicy
 from .kinematics import ArmModel
 from .lifecycle import Lifecycle
-from .parameters import PARAMS, PICK, SETTINGS
+from .parameters import COLLISION, PARAMS, PICK, SETTINGS
 from .pick_cycle import PickSettings
 from .planning import Planner, PlannerSettings
-from .resources import default_urdf
+from .resources import config_dir, default_urdf
+from .scene_msgs import cloud_points, scene_from_markers
 
 
 class PlannerNode(GoalFlow, Node):
@@ -65,6 +69,9 @@ class PlannerNode(GoalFlow, Node):
         self.names = list(self.arm.joint_names)
         self.planner = Planner(self.arm, self._settings({}))
         self.pick = PickSettings(**{n: self.get_parameter(n).value for n in PICK}).validate(self.arm)
+        p = {n: self.get_parameter(n).value for n in COLLISION}
+        self.world = World(self.arm, self._scene_file(p['scene_file']), p['collision_clearance'],
+                           p['avoid_collisions'])
         self.add_on_set_parameters_callback(self._on_parameters)
 
         # Times on the ROS clock count from here: as float seconds of the epoch they would resolve a
@@ -85,6 +92,11 @@ class PlannerNode(GoalFlow, Node):
         self.sub_path = self.create_subscription(PoseArray, 'goal_path', self._on_goal_path, BURST)
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
         self.sub_harvest = self.create_subscription(PoseArray, 'harvest_targets', self._on_harvest_targets, BURST)
+        # The world: a scene replaced whole by a latched MarkerArray, and the canopy by each cloud, built
+        # into its octree on a thread of its own (a cloud every 33 ms never waits for a plan, nor a plan for it).
+        self.sub_scene = self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
+        self.sub_canopy = self.create_subscription(PointCloud2, 'canopy_points', self._on_canopy, NEWEST)
+        self._clouds = CloudBuilder(self)
         self._harvests = {}           # goal key -> HarvestRun of the harvests sent and not ended, oldest first
         self.actions = [ActionServer(self, action, name, execute_callback=partial(self._execute, kind, plan),
                                      goal_callback=lambda _: GoalResponse.ACCEPT,
@@ -102,7 +114,31 @@ class PlannerNode(GoalFlow, Node):
         self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); '
                                f'method {self.planner.settings.method}, path_method '
-                               f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}')
+                               f'{self.planner.settings.path_method}, speed_scale {self.planner.settings.speed_scale}; '
+                               f'avoiding {self.world.words()}')
+
+    def _scene_file(self, path):
+        scene = Scene.from_yaml(path or config_dir() / 'workcell_scene.yaml')
+        if scene.frame != self.arm.base_frame:
+            raise ValueError(f'scene_file {path!r} is in frame {scene.frame!r}, not the arm\'s base frame '
+                             f'{self.arm.base_frame!r} (no TF here)')
+        return scene
+
+    def _on_scene(self, msg):
+        try:
+            scene = scene_from_markers(msg, self.arm.base_frame)
+        except ValueError as exc:
+            self.get_logger().error(f'scene refused, the old one kept: {exc}')
+            return
+        self.world.replace(scene=scene)
+        self.get_logger().info(f'scene replaced from the scene topic: avoiding {self.world.words()}')
+
+    def _on_canopy(self, msg):
+        self._clouds.offer(msg)
+
+    def destroy_node(self):
+        self._clouds.stop()
+        return super().destroy_node()
 
     # -- parameters -------------------------------------------------------------------
     def _settings(self, changes):
@@ -126,9 +162,12 @@ class PlannerNode(GoalFlow, Node):
             start_delay = float(changes.get('start_delay', self.policy.start_delay))
             if not start_delay >= 0.0:
                 raise ValueError(f'start_delay must be >= 0 s, got {start_delay}')
-        except (ValueError, TypeError) as exc:
+            scene = self._scene_file(changes['scene_file']) if 'scene_file' in changes else None
+        except (ValueError, TypeError, OSError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         self.planner, self.pick = planner, pick
+        self.world.replace(scene=scene, clearance=changes.get('collision_clearance'),
+                           enabled=changes.get('avoid_collisions'))
         self.policy.start_delay = start_delay
         return SetParametersResult(successful=True)
 
@@ -208,3 +247,51 @@ def main(args=None):
 
 if __name__ == '__main__':
     raise SystemExit(main())
+
+
+class CloudBuilder:
+    """Builds each canopy cloud offered into the node's world on a thread of its own; a cloud that
+    comes while one is built replaces the one waiting (only the newest is built)."""
+
+    def __init__(self, node):
+        self.node = node
+        self._waiting, self._stop = None, False
+        self._cv = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name='canopy', daemon=True)
+        self._thread.start()
+
+    def offer(self, msg):
+        with self._cv:
+            self._waiting = msg
+            self._cv.notify()
+
+    def stop(self):
+        with self._cv:
+            self._stop = True
+            self._cv.notify()
+        self._thread.join(2.0)
+
+    def _run(self):
+        logger, built = self.node.get_logger(), 0
+        while True:
+            with self._cv:
+                self._cv.wait_for(lambda: self._stop or self._waiting is not None)
+                if self._stop:
+                    return
+                msg, self._waiting = self._waiting, None
+            try:
+                points = cloud_points(msg, self.node.arm.base_frame)
+                if len(points):
+                    self.node.world.replace(canopy=points)
+                else:
+                    if self.node.world.canopy is not None:
+                        logger.info('canopy cleared by an empty cloud on canopy_points')
+                    self.node.world.clear_canopy()
+                    built = 0
+                    continue
+            except ValueError as exc:
+                logger.error(f'canopy_points refused, the old canopy kept: {exc}', throttle_duration_sec=5.0)
+                continue
+            built += 1
+            if built == 1:
+                logger.info(f'canopy from canopy_points: avoiding {self.node.world.words()}')

@@ -8,6 +8,7 @@ planner cannot plan with is refused with the reason).
 
 from picking_common.params import Param
 
+from .collision import CLEARANCE as COLLISION_CLEARANCE
 from .pick_cycle import PickSettings
 from .platform import CLEARANCE, SLACK
 from .planning import PlannerSettings
@@ -22,7 +23,10 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
-        'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius')
+        'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius',
+        'approach_cone', 'apple_region')
+#: The world the plans keep clear of (collision.World).
+COLLISION = ('scene_file', 'avoid_collisions', 'collision_clearance')
 
 
 def _default(name):
@@ -71,6 +75,9 @@ _TEXT = {
               'optimal)', '', None),
     'blend_radius': ('with blend: the joint moves meet the lines this far from P1, P3 and P4, rounding the corners '
                      '(less than half of each line)', 'm', (0.0, 0.5)),
+    'approach_cone': ('when the requested approach to an apple is blocked or out of reach, other grasp axes are tried '
+                      'this far from it (0: none)', 'rad', (0.0, 1.5708)),
+    'apple_region': ('radius around an apple where touching is allowed (the apple and its stem)', 'm', (0.0, 0.5)),
 }
 
 PARAMS = (
@@ -80,6 +87,12 @@ PARAMS = (
     Param('start_delay', 0.1, 'a plan starts this long after its planning is expected to end (stamped so), so that a '
           'moving arm never jumps', 's', (0.0, 10.0)),
     *(Param(name, _default(name), text, unit, rng) for name, (text, unit, rng) in _TEXT.items()),
+    Param('scene_file', '', 'the obstacles around the arm (YAML, see docs/collisions.md; empty: the shipped '
+          'config/workcell_scene.yaml); the scene topic replaces it at run time'),
+    Param('avoid_collisions', True, 'check every plan against the scene, the canopy cloud and the arm itself, and '
+          'pick around branches; false plans as if the world were empty'),
+    Param('collision_clearance', COLLISION_CLEARANCE, 'the least distance kept between the arm and an obstacle', 'm',
+          (0.0, 0.5)),
 )
 
 #: picking-harvester's parameters (the coordinator of several arms, harvester.py).

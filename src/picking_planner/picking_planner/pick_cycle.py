@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import geometry, trajectory
+from . import approaches, geometry, trajectory
 from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
 from .resources import GRIPPER_OPEN, HOME_POSITIONS
@@ -90,6 +90,11 @@ class PickSettings:
         of every line stays straight (the apple is pulled straight off for at least half
         the lift). How close the tool passes each corner and what the cycle gains are in
         ``docs/benchmarks.md`` (row 7).
+    approach_cone : float
+        When the requested approach is blocked or out of reach, other grasp axes are tried
+        this far from it, rad (0: only the requested one; see :mod:`picking_planner.approaches`).
+    apple_region : float
+        Radius around the apple's centre where touching is allowed (the apple and its stem), m.
     """
 
     home_positions: tuple = HOME_POSITIONS
@@ -109,6 +114,8 @@ class PickSettings:
     gripper_closed: float = 0.055
     blend: bool = False
     blend_radius: float = 0.0
+    approach_cone: float = float(np.radians(45.0))
+    apple_region: float = 0.06
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -144,6 +151,10 @@ class PickSettings:
             if self.blend_radius >= 0.5 * shortest[1]:
                 raise ValueError(f'blend_radius {self.blend_radius} m must be less than half of every line: '
                                  f'{shortest[0]} is {shortest[1]} m')
+        if not (np.isfinite(self.approach_cone) and 0.0 <= self.approach_cone <= np.pi / 2):
+            raise ValueError(f'approach_cone must be in [0, pi/2] rad, got {self.approach_cone}')
+        if not (np.isfinite(self.apple_region) and self.apple_region >= 0.0):
+            raise ValueError(f'apple_region must be a finite number >= 0 m, got {self.apple_region}')
         if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
             raise ValueError('blend needs approach_method and transfer_method optimal (jerk-limited moves to '
                              'and from moving states)')
@@ -184,12 +195,14 @@ def _offset(T, local):
 
 
 class PickCycle:
-    """Plans Table 1 for one apple with a :class:`~picking_planner.planning.Planner`."""
+    """Plans Table 1 for one apple with a :class:`~picking_planner.planning.Planner`; with a
+    :class:`~picking_planner.collision.CollisionChecker`, only cycles clear of its obstacles."""
 
-    def __init__(self, planner, settings=PickSettings()):
+    def __init__(self, planner, settings=PickSettings(), checker=None):
         self.planner = planner
         self.arm = planner.arm
         self.s = settings
+        self.checker = checker
 
     def key_poses(self, T_apple):
         """P1..P5 as 4x4 poses (P0 is a joint configuration)."""
@@ -212,8 +225,18 @@ class PickCycle:
         box, where the cycle before ended, and rises straight out of it into the approach instead
         of going home first; ``home_after=False`` ends at rest in the box after the release.
 
-        Raises Unreachable naming the knot point that cannot be reached.
+        When the requested approach is out of reach or (with a checker) touches an obstacle, other
+        approaches within ``approach_cone`` are tried (:func:`~picking_planner.approaches.clear_cycle`;
+        the plan's ``extra`` says which was taken: ``approach`` in words, ``approach_tilt`` and
+        ``approach_roll`` in rad). Raises Unreachable naming the knot
+        point that cannot be reached, or :class:`~picking_planner.approaches.Blocked` naming the
+        obstacle.
         """
+        return approaches.clear_cycle(
+            self, lambda T: self._plan(start, T, gripper_start, from_box, home_after), T_apple)
+
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after):
+        """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`)."""
         pl, s, arm = self.planner, self.s, self.arm
         start = pl.check_start(start)
         if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):

@@ -272,8 +272,9 @@ def test_a_blend_radius_needs_blend_and_must_leave_most_of_every_line_straight(a
 def test_a_point_moved_by_the_blend_radius_that_cannot_be_reached_is_named(arm, monkeypatch):
     planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
                                            limit_jerk=True, cartesian_profile='optimal'))
+    # The requested approach only (with a cone, another approach is found, its P1 elsewhere).
     cycle = PickCycle(planner, PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
-                                            blend_radius=0.02).validate(arm))
+                                            blend_radius=0.02, approach_cone=0.0).validate(arm))
     P1 = cycle.key_poses(APPLE)['P1'][:3, 3]
     reachable = arm.check_reachable
 

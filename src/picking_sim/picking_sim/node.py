@@ -4,36 +4,46 @@ Subscribes ``joint_commands`` (sensor_msgs/JointState: position, velocity, and
 acceleration feedforward in ``effort``), runs the servo loop at ``servo_rate``
 in a thread of its own with absolute deadlines, and publishes ``joint_states``
 at ``publish_rate`` and the URDF on ``robot_description`` (transient local),
-like a real arm driver.
+like a real arm driver. As a witness (picking_sim.witness), it reports every contact of the
+arm with the scene (``scene_file``, or the latched ``scene`` topic) on ``sim_contacts``.
 """
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import threading
 import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
+from visualization_msgs.msg import MarkerArray
 
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop
 from picking_common.params import declare, usage
 from picking_common.run import run_node
-from picking_common.status import Diagnostics, Level
-from picking_common.topics import LATCHED, LatestMessage
+from picking_common.status import Diagnostics, Level, status
+from picking_common.topics import BURST, LATCHED, LatestMessage
+from picking_planner.collision import CollisionChecker, Scene
 from picking_planner.kinematics import ArmModel
-from picking_planner.resources import default_urdf
+from picking_planner.kinematics.capsules import ArmCapsules
+from picking_planner.resources import config_dir, default_urdf
+from picking_planner.scene_msgs import scene_from_markers
 
 from .parameters import PARAMS
 from .servo import Servo, ServoParams
+from .witness import Witness
 
 #: Servo steps run at each wake of the loop thread.
 STEPS_PER_WAKE = 2
+#: Hz of the witness's look at the samples published since its last.
+WITNESS_RATE = 20.0
 #: s a servo loop woken late lets the process's middleware threads take in the commands sent
 #: meanwhile before it catches up along the newest.
 CATCH_UP_YIELD = 0.002
@@ -86,6 +96,14 @@ class SimNode(Node):
         self.loop = PeriodicLoop(self.servo.dt * STEPS_PER_WAKE, self._tick, name='servo', logger=self.get_logger(),
                                  phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled,
                                  catch_up_yield=CATCH_UP_YIELD)
+        # The witness: measured positions, as published, checked against the scene with no clearance.
+        scene = Scene.from_yaml(p['scene_file'] or config_dir() / 'workcell_scene.yaml')
+        self.witness = Witness(CollisionChecker(ArmCapsules.from_arm(self.arm), scene, clearance=0.0,
+                                                self_check=False))
+        self._watched = collections.deque(maxlen=int(10 * p['publish_rate']))
+        self.pub_contacts = self.create_publisher(DiagnosticStatus, 'sim_contacts', BURST)
+        self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
+        self.create_timer(1.0 / WITNESS_RATE, self._watch)
         self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         self.loop.start()
         self.get_logger().info(
@@ -167,14 +185,49 @@ class SimNode(Node):
         sec = int(t_state // 1)
         nanosec = min(int(round((t_state - sec) * 1e9)), 999_999_999)
         self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd, self.servo.torque))
+        self._watched.append((t_state, self.servo.q[:self.arm.dof].copy()))
+
+    def _on_scene(self, msg):
+        try:
+            scene = scene_from_markers(msg, self.arm.base_frame)
+        except ValueError as exc:
+            self.get_logger().error(f'scene refused, the old one kept: {exc}')
+            return
+        self.witness.checker = self.witness.checker.replaced(scene=scene)
+        self.get_logger().info(f'watching the arm against {len(scene)} obstacles from the scene topic')
+
+    def _watch(self):
+        """Every contact since the last look, on sim_contacts (ERROR when it starts, WARN when it ends)."""
+        samples = [self._watched.popleft() for _ in range(len(self._watched))]
+        if not samples:
+            return
+        times, q = zip(*samples)
+        for e in self.witness.observe(np.array(times), np.array(q)):
+            started = e.end is None
+            level = Level.ERROR if started else Level.WARN
+            text = e.words()
+            if started:
+                self.get_logger().error(text)
+            else:
+                self.get_logger().warn(text)
+            self.pub_contacts.publish(status('picking_sim', level, text, link=e.link, obstacle=e.obstacle,
+                                             state='started' if started else 'ended', start=e.start,
+                                             end=e.end if e.end is not None else '', x=e.point[0], y=e.point[1],
+                                             z=e.point[2], depth=e.depth, contacts=self.witness.count))
 
     def _diagnose(self):
         """For /diagnostics: the servo, following joint_commands or holding."""
         rate = 1.0 / self.servo.dt
         if self._commanded:
-            return [('servo', Level.OK, f'{rate:g} Hz, following joint_commands', {'servo_rate': rate})]
-        return [('servo', Level.WARN, f'{rate:g} Hz, no joint_commands: holding the last commanded position',
-                 {'servo_rate': rate})]
+            out = [('servo', Level.OK, f'{rate:g} Hz, following joint_commands', {'servo_rate': rate})]
+        else:
+            out = [('servo', Level.WARN, f'{rate:g} Hz, no joint_commands: holding the last commanded position',
+                    {'servo_rate': rate})]
+        n = self.witness.count
+        out.append(('contacts', Level.ERROR if self.witness.open else Level.OK,
+                    f'{n} contacts with the scene since the start' + (', one now' if self.witness.open else ''),
+                    {'contacts': n}))
+        return out
 
     def close(self):
         self.loop.stop()

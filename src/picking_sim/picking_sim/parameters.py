@@ -32,4 +32,6 @@ PARAMS = (
     Param('servo.max_torque', 400.0, 'motor torque saturation', 'N m', (0.1, 100000.0), read_only=True),
     Param('servo.velocity_margin', 1.2, 'the drive saturates at this times the URDF velocity limit (plans use up to '
           '1x)', '', (1.0, 10.0), read_only=True),
+    Param('scene_file', '', 'the obstacles the simulator watches the arm against, as the planner\'s scene_file (empty: '
+          'the shipped config/workcell_scene.yaml); the scene topic replaces it', read_only=True),
 )

@@ -1,0 +1,174 @@
+"""Picking around branches: when the requested approach is blocked, other directions within a cone
+(pure core of the pick cycle's search).
+
+A blocked or unreachable approach is not a refused apple. The grasp axis (the tool's z, into the
+apple) is tilted by up to ``approach_cone`` in every direction around it, and the gripper rolled
+about it; each candidate is first screened cheaply (its approach and lift lines by IK every
+centimetre, checked for collisions and joint jumps), and only the candidates that pass are planned
+as whole cycles and checked densely. The quickest clear cycle among the first few wins; an apple
+with none is refused with the obstacle that blocked most candidates.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .collision import Allowed
+from .kinematics import Unreachable
+
+#: rad: the tilts tried, in steps up to the cone.
+TILT_STEP = np.radians(15.0)
+#: Directions of tilt around the grasp axis.
+AZIMUTHS = 8
+#: rad: the gripper's rolls about the tilted axis (the fingers' plane turned).
+ROLLS = np.radians([0.0, 60.0, -60.0])
+#: Screened candidates planned as whole cycles; the quickest clear one of them is taken.
+MAX_CYCLES = 4
+#: m between the IK points of a screened line.
+SCREEN_STEP = 0.01
+#: rad: a joint moving further between two screened points breaks the line (another IK branch).
+SCREEN_JUMP = 0.3
+
+
+class Blocked(Unreachable):
+    """No clear cycle: the reason names the obstacle, where and when (a refused apple, as Unreachable)."""
+
+
+@dataclass(frozen=True)
+class Approach:
+    """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad)."""
+
+    pose: np.ndarray
+    tilt: float
+    roll: float
+
+    def words(self):
+        return (f'approached {np.degrees(self.tilt):.0f}° off the requested axis, rolled '
+                f'{np.degrees(self.roll):+.0f}°')
+
+
+def candidates(T, cone):
+    """The grasp poses to try for an apple at ``T`` (4x4): the requested one first, then every tilt
+    (within ``cone``, rad), direction and roll, the least changed first."""
+    T = np.asarray(T, float)
+    out = [Approach(T, 0.0, 0.0)]
+    tilts = np.arange(TILT_STEP, cone + 1e-9, TILT_STEP) if cone > 0 else []
+    for roll in ROLLS[1:]:
+        out.append(Approach(_turned(T, 0.0, 0.0, roll), 0.0, float(roll)))
+    for tilt in tilts:
+        for roll in ROLLS:
+            for k in range(AZIMUTHS):
+                out.append(Approach(_turned(T, tilt, 2 * np.pi * k / AZIMUTHS, roll), float(tilt), float(roll)))
+    return out
+
+
+def _turned(T, tilt, azimuth, roll):
+    """``T`` with its z axis tilted by ``tilt`` toward ``azimuth`` (in its own x-y plane), then rolled."""
+    axis = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0])          # tilting about it moves z toward azimuth
+    R = Rotation.from_rotvec(tilt * axis) * Rotation.from_rotvec([0.0, 0.0, roll])
+    out = T.copy()
+    out[:3, :3] = T[:3, :3] @ R.as_matrix()
+    return out
+
+
+def clear_cycle(cycle, plan_one, T_apple):
+    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T)`` plans the cycle for a
+    grasp pose; ``cycle`` (:class:`~picking_planner.pick_cycle.PickCycle`) gives the settings, the arm
+    and the checker. Raises :class:`Blocked` (or Unreachable) with the reason."""
+    s, checker = cycle.s, cycle.checker
+    allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
+    try:
+        plan = plan_one(T_apple)
+        contact = None if checker is None else check(checker, plan, allowed)
+        if contact is None:
+            return plan
+        first = Blocked(f'the requested approach hits {contact}')
+    except Unreachable as exc:
+        first = exc
+    if s.approach_cone <= 0.0:
+        raise first
+    passed, blockers = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
+    for approach in passed[:MAX_CYCLES]:
+        try:
+            plan = plan_one(approach.pose)
+        except Unreachable:
+            continue
+        contact = None if checker is None else check(checker, plan, allowed)
+        if contact is None:
+            plan.extra.update(approach=approach.words(), approach_tilt=approach.tilt, approach_roll=approach.roll)
+            return plan
+        blockers[contact.obstacle] += 1
+    cone = f'{np.degrees(s.approach_cone):.0f}°'
+    if blockers:
+        name, _ = blockers.most_common(1)[0]
+        raise Blocked(f'{name} blocks every approach within {cone} ({first})')
+    raise Unreachable(f'{first}; no other approach within {cone} reaches it either') from None
+
+
+def check(checker, plan, allowed):
+    """The first contact of ``plan`` (its arm joints), with the part of the cycle it happens in."""
+    contact = checker.check(plan.trajectory, allowed)
+    if contact is None:
+        return None
+    where = next((seg.label for seg in plan.segments if seg.start <= contact.time <= seg.start + seg.duration), '')
+    return PartContact(contact, where)
+
+
+class PartContact:
+    """A contact and the part of the cycle it happens in."""
+
+    def __init__(self, contact, part):
+        self.contact, self.part = contact, part
+        self.obstacle = contact.obstacle
+
+    def __str__(self):
+        return f'{self.contact} ({self.part})' if self.part else str(self.contact)
+
+
+def screen(cycle, approaches, allowed):
+    """``(passed, blockers)``: the approaches whose approach and lift lines are reachable every
+    SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's travel
+    from home to P1 and from P3 back, at full speed), and a Counter of the obstacles that blocked
+    the others. All candidates at once: one batched IK, one collision check."""
+    arm, checker = cycle.arm, cycle.checker
+    if not approaches:
+        return [], Counter()
+    home = np.asarray(cycle.s.home_positions, float)
+    keys = [cycle.key_poses(a.pose) for a in approaches]
+    q1, ok1, _ = arm.ik_batch(np.array([k['P1'] for k in keys]), home)
+    # Every candidate's lines are as long as the settings make them: the same number of points.
+    n1, n3 = (max(2, int(np.ceil(d / SCREEN_STEP - 1e-9)) + 1) for d in (cycle.s.approach_distance, cycle.s.lift_height))
+    lines = [_line(k['P1'], k['P2'], n1) + _line(k['P2'], k['P3'], n3)[1:] for k in keys]
+    n = n1 + n3 - 1
+    q, ok, _ = arm.ik_batch(np.concatenate(lines), np.repeat(np.where(ok1[:, None], q1, home), n, axis=0))
+    q, ok = q.reshape(len(keys), n, -1), ok.reshape(len(keys), n) & ok1[:, None]
+    good = ok.all(axis=1)
+    with np.errstate(invalid='ignore'):
+        good &= np.nan_to_num(np.abs(np.diff(q, axis=1)), nan=np.inf).max(axis=(1, 2)) <= SCREEN_JUMP
+    blockers = Counter()
+    if checker is not None and good.any():
+        rows = np.nonzero(good)[0]
+        found = checker.contacts(q[rows].reshape(-1, q.shape[-1]), allowed)
+        for i, c in enumerate(rows):
+            contact = next((x for x in found[i * n:(i + 1) * n] if x is not None), None)
+            if contact is not None:
+                good[c] = False
+                blockers[contact.obstacle] += 1
+    vmax = np.where(np.isfinite(arm.max_velocity), arm.max_velocity, 1.0)
+    cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
+    order = [c for c in np.argsort(cost, kind='stable') if good[c]]
+    return [approaches[c] for c in order], blockers
+
+
+def _line(a, b, n):
+    """``n`` poses along the straight line from ``a`` to ``b``, orientation slerped."""
+    f = np.linspace(0.0, 1.0, n)
+    turn = Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).as_rotvec()
+    P = np.repeat(a[None], n, axis=0)
+    P[:, :3, 3] = a[:3, 3] + f[:, None] * (b[:3, 3] - a[:3, 3])
+    P[:, :3, :3] = a[:3, :3] @ Rotation.from_rotvec(f[:, None] * turn).as_matrix()
+    return list(P)

@@ -1,0 +1,193 @@
+"""The scene, the canopy, the collision checker and the pick cycle's search for a clear approach."""
+
+import dataclasses
+
+import coal
+import numpy as np
+import pytest
+
+from picking_planner import approaches
+from picking_planner.collision import Allowed, Canopy, CollisionChecker, Scene
+from picking_planner.collision.scene import frames_along, transform
+from picking_planner.harvest import synthetic_tree
+from picking_planner.kinematics import Unreachable
+from picking_planner.kinematics.capsules import ArmCapsules
+from picking_planner.pick_cycle import PickCycle
+from picking_planner.platform import load_harvest
+
+HOME = np.array([0.0, 0.2, 1.6, 0.0, -0.23, 0.0])
+
+
+@pytest.fixture(scope='module')
+def cycle():
+    return load_harvest().cycle
+
+
+@pytest.fixture(scope='module')
+def caps(cycle):
+    return ArmCapsules.from_arm(cycle.arm)
+
+
+def branch(name, p0, p1, radius=0.015):
+    return {'name': name, 'from': list(p0), 'to': list(p1), 'radius': radius}
+
+
+@pytest.mark.parametrize('scene, words', [
+    ({'trees': []}, 'unknown keys'),
+    ({'branches': [{'from': [0, 0, 0], 'to': [1, 0, 0]}]}, "has no 'radius'"),
+    ({'branches': [branch('a', [0, 0, 0], [0, 0, 0])]}, 'the same point'),
+    ({'branches': [branch('a', [0, 0, 0], [1, 0, 0], -0.1)]}, 'radius must be a positive'),
+    ({'wires': [branch('a', [0, 0, 0], [1, 0, 0]), branch('a', [0, 1, 0], [1, 1, 0])]}, 'names must differ'),
+    ({'boxes': [{'center': [0, 0, 0], 'size': [0.1, 0, 0.1]}]}, 'longer than 0 m'),
+    ({'boxes': [{'center': [0, 0], 'size': [0.1, 0.1, 0.1]}]}, '3 finite numbers'),
+])
+def test_a_bad_scene_is_refused_with_the_reason(scene, words):
+    with pytest.raises(ValueError, match=words):
+        Scene.from_dict(scene)
+
+
+def test_the_shipped_orchard_scene_loads():
+    from picking_planner.resources import config_dir
+    scene = Scene.from_yaml(config_dir() / 'orchard_scene.yaml')
+    kinds = {o.kind for o in scene.obstacles}
+    assert {'branch', 'wire', 'box', 'ground'} <= kinds
+
+
+def naive_contact(checker, q, obstacles, canopy=None):
+    """Whether any moving link is within the clearance of an obstacle: coal on every pair, no broad phase."""
+    seg = checker.capsules.segments(q)[0]
+    request = coal.CollisionRequest()
+    request.security_margin = checker.clearance
+    for k in checker.moving:
+        frame, length = frames_along(seg[k, :1], seg[k, 1:])
+        shape = coal.Capsule(float(checker.capsules.radius[k]), float(length[0]))
+        others = [(o.shape, o.placed) for o in obstacles]
+        if canopy is not None:
+            others.append((canopy.octree, coal.Transform3s()))
+        for other, pose in others:
+            result = coal.CollisionResult()
+            coal.collide(shape, transform(frame[0]), other, pose, request, result)
+            if result.isCollision():
+                return True
+    return False
+
+
+def test_the_broad_phase_clears_only_what_coal_clears(cycle, caps):
+    """Random configurations near a scene and a 20 000-point canopy: the checker finds a contact
+    exactly where coal, asked about every link and obstacle, finds one."""
+    rng = np.random.default_rng(3)
+    scene = Scene.from_dict({'ground_z': -0.2, 'branches': [branch('b', [0.6, -0.5, 0.5], [0.6, 0.5, 0.7], 0.03)],
+                             'wires': [branch('w', [0.4, -1, 0.3], [0.4, 1, 0.3], 0.002)],
+                             'boxes': [{'name': 'box', 'center': [0.1, -0.55, 0.15], 'size': [0.3, 0.3, 0.3]}]})
+    canopy = Canopy(rng.uniform([0.65, -0.4, 0.4], [0.9, 0.4, 0.9], (20000, 3)))
+    checker = CollisionChecker(caps, scene, canopy, self_check=False)
+    q = HOME + rng.normal(0.0, 0.6, (300, 6))
+    got = np.array([c is not None for c in checker.contacts(q)])
+    want = np.array([naive_contact(checker, qi, scene.obstacles, canopy) for qi in q])
+    assert 30 < got.sum() < 270, 'the sample must hold both clear and colliding configurations'
+    np.testing.assert_array_equal(got, want)
+
+
+def test_a_contact_names_the_link_the_obstacle_where_and_how_near(cycle, caps):
+    tool = cycle.arm.fk(HOME)[:3, 3]
+    # A branch along y, 7 cm above the tool point: the tool's sphere (4.5 cm) comes within 2.5 cm of its
+    # surface (1.5 cm radius) less... 7 - 4.5 - 1.5 = 1 cm, inside the 2 cm clearance.
+    scene = Scene.from_dict({'branches': [branch('twig', tool + [0, -0.3, 0.07], tool + [0, 0.3, 0.07])]})
+    contact = CollisionChecker(caps, scene).first_contact([HOME], times=[1.5])
+    assert contact.obstacle == 'twig' and contact.time == 1.5
+    assert contact.link in ('tool0', 'wrist_3_link')
+    assert contact.distance < 0.02
+    assert 'twig' in str(contact) and 't = 1.500 s' in str(contact)
+    # Touching inside the apple's region is allowed.
+    assert CollisionChecker(caps, scene).first_contact([HOME], allowed=Allowed(tool + [0, 0, 0.07], 0.2)) is None
+    far = Scene.from_dict({'branches': [branch('twig', tool + [0, -0.3, 0.3], tool + [0, 0.3, 0.3])]})
+    assert CollisionChecker(caps, far).first_contact([HOME]) is None
+
+
+def test_the_arm_folded_onto_itself_is_a_self_collision(caps):
+    checker = CollisionChecker(caps)
+    assert checker.first_contact([HOME]) is None
+    folded = np.array([0.0, 0.2, 2.9, 0.0, 2.5, 0.0])          # the elbow shut: the wrist on the upper arm
+    contact = checker.first_contact([HOME, folded])
+    assert contact is not None and contact.index == 1 and 'the arm\'s' in contact.obstacle
+
+
+def test_a_trajectory_is_checked_so_densely_that_no_link_moves_a_centimetre_between_checks(cycle, caps):
+    plan = cycle.plan((HOME, 0 * HOME, 0 * HOME), synthetic_tree(3, seed=2)[0])
+    checker = CollisionChecker(caps)
+    t, q = checker.samples(plan.trajectory)
+    seg = caps.segments(q)
+    assert np.linalg.norm(np.diff(seg, axis=0), axis=-1).max() <= 0.01
+    assert t[0] == 0.0 and t[-1] == pytest.approx(plan.duration)
+
+
+def test_the_canopy_bound_never_exceeds_the_distance_to_its_points():
+    rng = np.random.default_rng(0)
+    points = rng.uniform(0.0, 0.5, (5000, 3))
+    canopy = Canopy(points)
+    queries = rng.uniform(-0.3, 0.8, (2000, 3))
+    true = np.linalg.norm(queries[:, None] - points[None], axis=-1).min(axis=1)
+    assert np.all(canopy.lower_bound(queries) <= true)
+    with pytest.raises(ValueError, match='finite point'):
+        Canopy(np.full((3, 3), np.nan))
+
+
+# -- the pick cycle around branches ---------------------------------------------------------------------------------
+
+def apple():
+    return synthetic_tree(10, seed=1)[1]
+
+
+def test_a_branch_across_the_straight_approach_is_passed_from_another_direction(cycle, caps):
+    T = apple()
+    a = T[:3, 3]
+    scene = Scene.from_dict({'branches': [branch('low branch', a + [-0.08, -0.4, -0.07], a + [-0.08, 0.4, -0.07])]})
+    checker = CollisionChecker(caps, scene)
+    straight = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0), checker)
+    start = (HOME, 0 * HOME, 0 * HOME)
+    with pytest.raises(approaches.Blocked, match='low branch'):
+        straight.plan(start, T)
+    plan = PickCycle(cycle.planner, cycle.s, checker).plan(start, T)
+    assert 0.0 < plan.extra['approach_tilt'] <= np.radians(45.0) + 1e-9
+    assert plan.extra['approach'].startswith('approached ')
+    assert checker.check(plan.trajectory, Allowed(a, cycle.s.apple_region)) is None
+    # The grasp is at the apple, along the approach taken.
+    q_grasp = plan.trajectory.sample([plan.extra['grasp_start']])[0][0, :6]
+    np.testing.assert_allclose(cycle.arm.fk(q_grasp)[:3, 3], a, atol=1e-4)
+
+
+def test_an_apple_enclosed_by_the_canopy_is_refused_with_what_blocks_it(cycle, caps):
+    T = apple()
+    rng = np.random.default_rng(1)
+    shell = rng.normal(size=(4000, 3))
+    shell = T[:3, 3] + 0.12 * shell / np.linalg.norm(shell, axis=1)[:, None]
+    checker = CollisionChecker(caps, canopy=Canopy(shell))
+    with pytest.raises(approaches.Blocked, match=r'the canopy blocks every approach within 45°'):
+        PickCycle(cycle.planner, cycle.s, checker).plan((HOME, 0 * HOME, 0 * HOME), T)
+
+
+def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
+    """The search serves kinematic failures too: here the requested grasp pose fails (as a line that
+    needs another IK branch midway does), and a tilted one is planned instead."""
+    T = apple()
+    pick = PickCycle(cycle.planner, cycle.s)
+
+    def plan_one(pose):
+        if np.allclose(pose, T):
+            raise Unreachable('path fails at t = 0.244 s: wrist_3_joint would jump 0.363 rad')
+        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True)
+    plan = approaches.clear_cycle(pick, plan_one, T)
+    assert plan.extra['approach_tilt'] > 0.0 or plan.extra['approach_roll'] != 0.0
+    narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))
+    with pytest.raises(Unreachable, match='would jump'):
+        approaches.clear_cycle(narrow, plan_one, T)
+
+
+def test_the_candidates_stay_within_the_cone_and_start_with_the_requested_pose():
+    T = apple()
+    found = approaches.candidates(T, np.radians(45.0))
+    assert np.allclose(found[0].pose, T)
+    tilts = [np.degrees(np.arccos(np.clip(c.pose[:3, 2] @ T[:3, 2], -1, 1))) for c in found]
+    assert max(tilts) <= 45.0 + 1e-6 and min(tilts[1 + len(approaches.ROLLS) - 1:]) >= 15.0 - 1e-6
+    assert all(np.allclose(c.pose[:3, 3], T[:3, 3]) for c in found)
+    assert approaches.candidates(T, 0.0)[1:] == [] or all(c.tilt == 0.0 for c in approaches.candidates(T, 0.0))

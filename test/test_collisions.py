@@ -1,0 +1,114 @@
+"""Branch-aware picking through the running stack, seen from outside: a scene published on the
+latched ``scene`` topic puts a branch across the straight approach to an apple; the planner picks
+it from another direction and the simulator, as a witness, reports no contact; with collision
+checking off (the parameter service), the same pick hits the branch and the witness says so; a
+pose goal into the branch is refused naming it; a canopy cloud is taken from ``canopy_points``."""
+
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import PointCloud2
+from visualization_msgs.msg import MarkerArray
+
+from picking_common.status import status_values
+from picking_common.topics import BURST, LATCHED
+from picking_planner.collision import Scene
+from picking_planner.collision.scene import rod
+from picking_planner.harvest import synthetic_tree
+from picking_planner.resources import config_dir
+from picking_planner.scene_msgs import cloud_message, scene_markers
+from rosstack import final_answer, make_pose, reach, running_stack
+
+#: An apple of the synthetic tree, approached along +x; a branch 8 cm in front of it and 6 cm below.
+APPLE = synthetic_tree(10, seed=1)[1]
+A = APPLE[:3, 3]
+BRANCH = rod('low branch', 'branch', A + [-0.08, -0.4, -0.06], A + [-0.08, 0.4, -0.06], 0.015)
+
+
+@pytest.fixture(scope='module')
+def arm(tmp_path_factory):
+    with running_stack('/col', tmp_path_factory.mktemp('logs')) as (stack, client):
+        contacts = []
+        client.create_subscription(DiagnosticStatus, 'sim_contacts', lambda m: contacts.append(m), BURST)
+        scene = Scene.from_yaml(config_dir() / 'workcell_scene.yaml').merged([BRANCH])
+        pub = client.create_publisher(MarkerArray, 'scene', LATCHED)
+        pub.publish(scene_markers(scene, 'base_link'))
+        client.wait_for(lambda: 'scene replaced' in stack.planner.output()
+                        and 'from the scene topic' in stack.sim.output(), 20.0, 'both nodes to take the scene')
+        yield stack, client, contacts
+
+
+def pick_msg():
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = make_pose(A.tolist(), Rotation.from_matrix(APPLE[:3, :3]).as_quat().tolist())
+    return msg
+
+
+def started(contacts, since):
+    with_lock = list(contacts[since:])
+    return [status_values(m) for m in with_lock if status_values(m).get('state') == 'started']
+
+
+def test_the_planner_picks_around_a_branch_and_the_witness_sees_no_contact(arm):
+    stack, client, contacts = arm
+    seen = len(contacts)
+    answer = reach(client, lambda: client.send(client.pub_pick, pick_msg()), timeout=60.0)
+    assert 'approached' in answer.message and 'off the requested axis' in answer.message, answer.message
+    assert float(status_values(answer)['approach_tilt']) > 0.0
+    time.sleep(0.5)                                           # the witness looks 20 times a second
+    assert started(contacts, seen) == []
+
+
+def test_with_checking_off_the_same_pick_hits_the_branch_and_the_witness_says_so(arm):
+    stack, client, contacts = arm
+    seen = len(contacts)
+    client.set_planner_parameter('avoid_collisions', False)
+    try:
+        reach(client, lambda: client.send(client.pub_pick, pick_msg()), timeout=60.0)
+        client.wait_for(lambda: started(contacts, seen), 5.0, 'a contact on sim_contacts')
+        hit = started(contacts, seen)[0]
+        assert hit['obstacle'] == 'low branch' and float(hit['depth']) > 0.0, hit
+        assert hit['link'] in ('wrist_3_link', 'tool0', 'wrist_1_link', 'forearm_link')
+    finally:
+        client.set_planner_parameter('avoid_collisions', True)
+
+
+def test_a_pose_goal_into_the_branch_is_refused_naming_it(arm):
+    stack, client, contacts = arm
+    mark = client.mark()
+    client.send(client.pub_pose, pick_pose_at(BRANCH.ends.mean(axis=0)))
+    answer = final_answer(client, mark)
+    assert status_values(answer)['state'] == 'refused'
+    assert 'would hit an obstacle' in answer.message and 'low branch' in answer.message, answer.message
+
+
+def pick_pose_at(xyz):
+    msg = pick_msg()
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in xyz)
+    return msg
+
+
+def test_a_canopy_cloud_is_taken_and_an_apple_inside_it_is_refused_with_what_blocks_it(arm):
+    stack, client, contacts = arm
+    rng = np.random.default_rng(4)
+    shell = rng.normal(size=(3000, 3))
+    shell = A + 0.12 * shell / np.linalg.norm(shell, axis=1)[:, None]
+    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
+    client.wait_for(lambda: pub.get_subscription_count() > 0, 10.0, 'the planner on canopy_points')
+    pub.publish(cloud_message(shell, 'base_link'))
+    client.wait_for(lambda: 'canopy from canopy_points' in stack.planner.output(), 20.0, 'the canopy taken')
+    try:
+        mark = client.mark()
+        client.send(client.pub_pick, pick_msg())
+        answer = final_answer(client, mark, 60.0)
+        assert status_values(answer)['state'] == 'refused', answer.message
+        # (The low branch blocks some of the approaches too: the message names the obstacle that blocked most.)
+        assert 'blocks every approach within 45°' in answer.message and 'the canopy' in answer.message, answer.message
+    finally:
+        pub.publish(cloud_message(np.zeros((0, 3)), 'base_link'))        # an empty cloud: no canopy
+        client.wait_for(lambda: 'canopy cleared' in stack.planner.output(), 20.0, 'the canopy cleared')
