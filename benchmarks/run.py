@@ -5,7 +5,8 @@
 Rows (issue 6): 1 core sampling and IK against roboticstoolbox-python, 2 planning
 the Table 1 cycle in process, 3 goal -> JointTrajectory over DDS, 4 the controller
 loop at 1 kHz, 5 servo tracking through the cycle, 6 several arms side by side,
-7 the jerk-limited cycle with the optimal method, 8 a tree harvested by one arm and by 2-4 arms. Every ROS process runs with
+7 the jerk-limited cycle with the optimal method, 8 a tree harvested by one arm and by 2-4 arms, 9 collision
+checks and a blocked apple planned around its twig. Every ROS process runs with
 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST in a ROS_DOMAIN_ID of this run's own.
 """
 
@@ -35,7 +36,7 @@ HEADER = ['#', 'figure', 'ours', 'detail (peer side by side, or the figures behi
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='fewer repeats and shorter runs (a smoke run)')
-    parser.add_argument('--only', default='1,2,3,4,5,6,7,8', help='comma-separated rows to run (default all)')
+    parser.add_argument('--only', default='1,2,3,4,5,6,7,8,9', help='comma-separated rows to run (default all)')
     parser.add_argument('--out', type=Path, default=Path('docs/benchmarks.md'))
     args = parser.parse_args(argv)
     rows_wanted = {int(x) for x in args.only.split(',')}
@@ -75,6 +76,10 @@ def main(argv=None):
         print('row 8: a tree harvested by one arm, planned and on the simulator', flush=True)
         rows += measure('8', lambda: bench_harvest.planned() + bench_harvest.run_on_simulator()
                         + bench_harvest.platforms())
+    if 9 in rows_wanted:
+        import bench_collision
+        print('row 9: collision checks against the canopy and the scene, a blocked apple', flush=True)
+        rows += measure('9', bench_collision.checks)
     rows.sort(key=lambda r: int(r[0]))
     total_steal = steal_share(first_times, cpu_times())
     text = table(rows, HEADER)

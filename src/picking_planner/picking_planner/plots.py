@@ -21,7 +21,8 @@ def _pyplot():
 def legend_below(fig, ax, ncol=4):
     """``ax``'s legend below the figure's plots, not over their curves (seven joint names fill
     an axis' width), then the layout leaving it room (0.22 in a row of names)."""
-    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(*reversed(ax.get_legend_handles_labels())))     # one entry per label
+    labels, handles = list(unique), list(unique.values())
     fig.legend(handles, labels, loc='lower center', fontsize='small', ncol=min(len(labels), ncol), frameon=False)
     rows = -(-len(labels) // ncol)
     fig.tight_layout(rect=(0.0, 0.22 * rows / fig.get_figheight(), 1.0, 1.0))
@@ -243,3 +244,35 @@ def plot_harvest(path, apples, order, skipped, tool, title):
         for n, k in enumerate(order):
             ax.annotate(str(n + 1), p[k, [i, j]], textcoords='offset points', xytext=(6, 6), fontsize=8)
     return _tree_figure(path, draw, title, 'front view (y, z)', (11, 5.2))
+
+
+def plot_orchard(path, orchard, picked, skipped, tools, title):
+    """A tree among branches from the front (y-z) and from above (y-x): the scene's branches and wires
+    (drawn as wide as they are), the twigs the cloud holds, the apples (picked with branch awareness,
+    skipped), and the tool path of each run (``tools``: label -> (N, 3), m)."""
+    p = np.array([T[:3, 3] for T in orchard.apples])
+    lo, hi = p.min(axis=0) - 0.3, p.max(axis=0) + 0.3
+    styles = dict(zip(tools, (dict(color='tab:blue', lw=0.7, alpha=0.7), dict(color='tab:orange', lw=0.7, alpha=0.5))))
+
+    def draw(ax, i, j):
+        for o in orchard.scene.obstacles:
+            if o.ends is None:
+                continue
+            e = np.clip(o.ends, lo, hi)              # a wire along the whole row: the part beside the tree
+            ax.plot(e[:, i], e[:, j], color='saddlebrown' if o.kind == 'branch' else '0.4', lw=_width(o.radius),
+                    alpha=0.8, solid_capstyle='round', label=f'{"branches" if o.kind == "branch" else "wires"} (scene)')
+        for e, r in zip(orchard.twigs, orchard.twig_radius):
+            ax.plot(e[:, i], e[:, j], color='peru', lw=_width(r), alpha=0.9, solid_capstyle='round',
+                    label='twigs (canopy cloud)')
+        for label, tool in tools.items():
+            if len(tool):
+                ax.plot(tool[:, i], tool[:, j], label=f'tool path, {label}', **styles[label])
+        ax.scatter(p[picked, i], p[picked, j], s=80, color='tab:red', zorder=3, label='apple picked')
+        if skipped:
+            ax.scatter(p[skipped, i], p[skipped, j], s=80, color='0.6', marker='X', zorder=3, label='apple skipped')
+    return _tree_figure(path, draw, title, 'front view (y, z): branches, twigs, apples, tool paths', (12, 5.6))
+
+
+def _width(radius):
+    """A line width (points) about as wide as a rod of ``radius`` m in a tree figure's views."""
+    return max(1.0, 2 * radius * 220)

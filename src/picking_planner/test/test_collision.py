@@ -191,3 +191,23 @@ def test_the_candidates_stay_within_the_cone_and_start_with_the_requested_pose()
     assert max(tilts) <= 45.0 + 1e-6 and min(tilts[1 + len(approaches.ROLLS) - 1:]) >= 15.0 - 1e-6
     assert all(np.allclose(c.pose[:3, 3], T[:3, 3]) for c in found)
     assert approaches.candidates(T, 0.0)[1:] == [] or all(c.tilt == 0.0 for c in approaches.candidates(T, 0.0))
+
+
+def test_an_orchard_tree_is_seeded_its_apples_clear_of_its_branches_and_some_hang_behind_a_twig(cycle, caps):
+    from picking_planner.kinematics.capsules import segment_distances
+    from picking_planner.orchard import APPLE_GAP, orchard_tree
+    a, b = orchard_tree(16, seed=3), orchard_tree(16, seed=3)
+    assert np.array_equal(a.cloud, b.cloud) and all(np.array_equal(x, y) for x, y in zip(a.apples, b.apples))
+    assert len(a.apples) == 16 and a.blocked
+    for T in a.apples:
+        p = T[:3, 3]
+        for o in a.scene.obstacles:
+            if o.ends is not None:
+                assert segment_distances(p, p, o.ends[0], o.ends[1]) - o.radius >= APPLE_GAP - 1e-9
+    # Each twig crosses the straight approach of its apple: that cycle is not clear, and is refused
+    # when no other approach may be tried.
+    checker = CollisionChecker(caps, a.scene, Canopy(a.cloud))
+    straight = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0), checker)
+    for i in a.blocked:
+        with pytest.raises(Unreachable):
+            straight.plan((HOME, 0 * HOME, 0 * HOME), a.apples[i])

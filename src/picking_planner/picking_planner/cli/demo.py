@@ -6,8 +6,9 @@ Starts the simulator, the controller and the planner as separate processes
 every process by its pid, and writes a report and plots to ``--out``. Then the
 paper's Sec. 3.1 arc as a second scenario, the same cycle planned with
 cubic, quintic and LSPB segments side by side, a tree harvested by the arm
-(scenario 3), and a wider tree harvested by two arms (scenario 4,
-``picking-stack --platform``). Exit code 0 only if every step worked.
+(scenario 3), a wider tree harvested by two arms (scenario 4,
+``picking-stack --platform``), and a tree among branches harvested around them and
+once without collision checking (scenario 5). Exit code 0 only if every step worked.
 """
 
 from __future__ import annotations
@@ -209,6 +210,20 @@ def run_platform(rec, events, config, out, demo):
     return all(checks.values())
 
 
+def run_orchard(events, config, out, demo):
+    """Scenario 5 after the others (their stacks stopped): its section appended to the report."""
+    from ..orchard import orchard_tree
+    from .demo_orchard import clear_apples, run_orchard_scenario
+    n, seed = int(demo.get('orchard_apples', 16)), int(demo.get('orchard_seed', 3))
+    demo = dict(demo, clear_apples=clear_apples(orchard_tree(n, seed), config))
+    lines, files, checks = run_orchard_scenario(config, out, demo)
+    report = out / 'report.md'
+    report.write_text(report.read_text() + '\n'.join(lines + ['', *[f'- `{f}`' for f in files]]) + '\n')
+    print('\n'.join(lines))
+    events['orchard'] = checks
+    return all(checks.values())
+
+
 #: Status values that name something (a goal, a trajectory by its stamp): text, never numbers.
 NAMES = ('goal', 'trajectory', 'stamp')
 
@@ -229,7 +244,7 @@ def _numbers(value):
 
 #: What a run writes into --out (removed first, so that nothing left from an earlier run is taken for this one's).
 OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png',
-           'harvest.png', 'platform.png', 'platform.mcap')
+           'harvest.png', 'platform.png', 'platform.mcap', 'orchard.png', 'orchard.mcap')
 #: Lines of each node's log quoted in the report of a failed run.
 LOG_TAIL = 30
 
@@ -276,6 +291,7 @@ def main(argv=None):
         report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick)
         if not args.quick:
             report_ok = run_platform(rec, events, config, args.out, demo) and report_ok
+            report_ok = run_orchard(events, config, args.out, demo) and report_ok
     else:
         failure_report(rec, events, args.out)
     summary = {'ok': bool(ok and report_ok), 'events': _numbers({k: v for k, v in events.items() if k != 'plan'}),
