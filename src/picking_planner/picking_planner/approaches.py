@@ -28,6 +28,8 @@ AZIMUTHS = 8
 ROLLS = np.radians([0.0, 60.0, -60.0])
 #: Screened candidates planned as whole cycles; the quickest clear one of them is taken.
 MAX_CYCLES = 4
+#: Blocked candidates whose obstacle is named (the one that blocked most is given in a refusal).
+NAMED = 12
 #: m between the IK points of a screened line.
 SCREEN_STEP = 0.01
 #: rad: a joint moving further between two screened points breaks the line (another IK branch).
@@ -81,17 +83,23 @@ def clear_cycle(cycle, plan_one, T_apple):
     and the checker. Raises :class:`Blocked` (or Unreachable) with the reason."""
     s, checker = cycle.s, cycle.checker
     allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
-    try:
-        plan = plan_one(T_apple)
-        contact = None if checker is None else check(checker, plan, allowed)
-        if contact is None:
-            return plan
-        first = Blocked(f'the requested approach hits {contact}')
-    except Unreachable as exc:
-        first = exc
+    requested = candidates(T_apple, 0.0)[0]
+    # Screened first, with a checker: a requested approach whose lines hit something is not planned in full.
+    blocked = screen(cycle, [requested], allowed)[2] if checker is not None else {}
+    if blocked:
+        first = Blocked(f'the requested approach hits {blocked[0]}')
+    else:
+        try:
+            plan = plan_one(T_apple)
+            contact = None if checker is None else check(checker, plan, allowed)
+            if contact is None:
+                return plan
+            first = Blocked(f'the requested approach hits {contact}')
+        except Unreachable as exc:
+            first = exc
     if s.approach_cone <= 0.0:
         raise first
-    passed, blockers = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
+    passed, blockers, _ = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
     for approach in passed[:MAX_CYCLES]:
         try:
             plan = plan_one(approach.pose)
@@ -130,45 +138,44 @@ class PartContact:
 
 
 def screen(cycle, approaches, allowed):
-    """``(passed, blockers)``: the approaches whose approach and lift lines are reachable every
-    SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's travel
-    from home to P1 and from P3 back, at full speed), and a Counter of the obstacles that blocked
-    the others. All candidates at once: one batched IK, one collision check."""
+    """``(passed, blockers, contacts)``: the approaches whose approach and lift lines are reachable
+    every SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's
+    travel from home to P1 and from P3 back, at full speed); a Counter of the obstacles that blocked
+    the others (the first NAMED of them), and those candidates' first contacts by index. All
+    candidates at once: one batched IK, one collision check."""
     arm, checker = cycle.arm, cycle.checker
     if not approaches:
-        return [], Counter()
+        return [], Counter(), {}
     home = np.asarray(cycle.s.home_positions, float)
     keys = [cycle.key_poses(a.pose) for a in approaches]
-    q1, ok1, _ = arm.ik_batch(np.array([k['P1'] for k in keys]), home)
-    # Every candidate's lines are as long as the settings make them: the same number of points.
+    P1, P2, P3 = (np.array([k[name] for k in keys]) for name in ('P1', 'P2', 'P3'))
+    q1, ok1, _ = arm.ik_batch(P1, home)
+    # Every candidate's lines are as long as the settings make them: the same number of points. The cycle's
+    # lines keep the grasp's orientation (P1 and P3 are P2 moved back along the grasp axis and up).
     n1, n3 = (max(2, int(np.ceil(d / SCREEN_STEP - 1e-9)) + 1) for d in (cycle.s.approach_distance, cycle.s.lift_height))
-    lines = [_line(k['P1'], k['P2'], n1) + _line(k['P2'], k['P3'], n3)[1:] for k in keys]
-    n = n1 + n3 - 1
-    q, ok, _ = arm.ik_batch(np.concatenate(lines), np.repeat(np.where(ok1[:, None], q1, home), n, axis=0))
+    f = np.concatenate([np.linspace(0.0, 1.0, n1), 1.0 + np.linspace(0.0, 1.0, n3)[1:]])
+    n = len(f)
+    a, b = np.where(f <= 1.0, 0, 1), np.clip(f - np.where(f <= 1.0, 0.0, 1.0), 0.0, 1.0)
+    starts = np.stack([P1[:, :3, 3], P2[:, :3, 3]], axis=1)[:, a]             # (C, n, 3)
+    ends = np.stack([P2[:, :3, 3], P3[:, :3, 3]], axis=1)[:, a]
+    P = np.repeat(P2[:, None], n, axis=1)
+    P[:, :, :3, 3] = starts + b[None, :, None] * (ends - starts)
+    q, ok, _ = arm.ik_batch(P.reshape(-1, 4, 4), np.repeat(np.where(ok1[:, None], q1, home), n, axis=0))
     q, ok = q.reshape(len(keys), n, -1), ok.reshape(len(keys), n) & ok1[:, None]
     good = ok.all(axis=1)
     with np.errstate(invalid='ignore'):
         good &= np.nan_to_num(np.abs(np.diff(q, axis=1)), nan=np.inf).max(axis=(1, 2)) <= SCREEN_JUMP
-    blockers = Counter()
+    blockers, contacts = Counter(), {}
     if checker is not None and good.any():
         rows = np.nonzero(good)[0]
-        found = checker.contacts(q[rows].reshape(-1, q.shape[-1]), allowed)
-        for i, c in enumerate(rows):
-            contact = next((x for x in found[i * n:(i + 1) * n] if x is not None), None)
+        hit = checker.colliding(q[rows].reshape(-1, q.shape[-1]), allowed).reshape(len(rows), n).any(axis=1)
+        good[rows[hit]] = False
+        for c in rows[hit][:NAMED]:                 # what blocked them, for the words of a refusal
+            contact = checker.first_contact(q[c], allowed=allowed)
             if contact is not None:
-                good[c] = False
                 blockers[contact.obstacle] += 1
+                contacts[int(c)] = contact
     vmax = np.where(np.isfinite(arm.max_velocity), arm.max_velocity, 1.0)
     cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
     order = [c for c in np.argsort(cost, kind='stable') if good[c]]
-    return [approaches[c] for c in order], blockers
-
-
-def _line(a, b, n):
-    """``n`` poses along the straight line from ``a`` to ``b``, orientation slerped."""
-    f = np.linspace(0.0, 1.0, n)
-    turn = Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).as_rotvec()
-    P = np.repeat(a[None], n, axis=0)
-    P[:, :3, 3] = a[:3, 3] + f[:, None] * (b[:3, 3] - a[:3, 3])
-    P[:, :3, :3] = a[:3, :3] @ Rotation.from_rotvec(f[:, None] * turn).as_matrix()
-    return list(P)
+    return [approaches[c] for c in order], blockers, contacts

@@ -9,6 +9,7 @@ the rest. Self-collision compares the arm's own capsules in closed form
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import coal
@@ -29,6 +30,11 @@ SELF_SAMPLES = 2000
 ALWAYS = 0.95
 
 
+def _allowed(allowed):
+    """``allowed`` as a list of :class:`Allowed` regions."""
+    return [] if allowed is None else ([allowed] if isinstance(allowed, Allowed) else list(allowed))
+
+
 def _request(clearance):
     """coal's query: every contact closer than ``clearance`` m, with where and how deep."""
     request = coal.CollisionRequest()
@@ -40,7 +46,8 @@ def _request(clearance):
 
 @dataclass(frozen=True)
 class Contact:
-    """A link closer than the clearance to an obstacle: at sample ``index`` (time ``time``, s),
+    """A link closer than the clearance to an obstacle: at sample ``index`` (time ``time``, s, NaN
+    for configurations given without times),
     ``link`` within ``distance`` m (negative: inside) of ``obstacle`` at ``point`` (m)."""
 
     index: int
@@ -53,7 +60,8 @@ class Contact:
     def __str__(self):
         x, y, z = self.point
         how = f'{-self.distance * 100:.1f} cm into' if self.distance < 0 else f'{self.distance * 100:.1f} cm from'
-        return f'{self.link} {how} {self.obstacle} at ({x:.3f}, {y:.3f}, {z:.3f}) m, t = {self.time:.3f} s'
+        when = '' if np.isnan(self.time) else f', t = {self.time:.3f} s'
+        return f'{self.link} {how} {self.obstacle} at ({x:.3f}, {y:.3f}, {z:.3f}) m{when}'
 
 
 @dataclass(frozen=True)
@@ -64,7 +72,9 @@ class Allowed:
     radius: float
 
     def holds(self, point):
-        return float(np.linalg.norm(np.asarray(point) - self.center)) <= self.radius
+        x, y, z = point
+        cx, cy, cz = self.center
+        return (x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2 <= self.radius ** 2
 
 
 class CollisionChecker:
@@ -118,23 +128,61 @@ class CollisionChecker:
 
     def first_contact(self, q, times=None, allowed=None):
         """The earliest :class:`Contact` over the configurations ``q`` (N, dof) at ``times`` (s;
-        default the sample index), or None when all are clear. Touches inside ``allowed``
+        none by default), or None when all are clear. Touches inside ``allowed``
         (:class:`Allowed`, or a list of them) do not count."""
-        found = self._contacts(q, times, allowed, first=True)
-        return next((c for c in found if c is not None), None)
+        q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
+        times = np.full(len(q), np.nan) if times is None else np.asarray(times, float)
+        for n in np.nonzero(self.colliding(q, allowed))[0]:
+            contact = self._contacts(q[n:n + 1], times[n:n + 1], allowed, first=True)[0]
+            if contact is not None:
+                return dataclasses.replace(contact, index=int(n))
+        return None
 
     def contacts(self, q, allowed=None):
         """For each configuration of ``q`` (N, dof), a :class:`Contact` (one of its contacts) or None."""
-        return self._contacts(q, None, allowed, first=False)
+        q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
+        found = [None] * len(q)
+        for n in np.nonzero(self.colliding(q, allowed))[0]:
+            found[n] = self._contacts(q[n:n + 1], None, allowed, first=True)[0]
+            if found[n] is not None:
+                found[n] = dataclasses.replace(found[n], index=int(n))
+        return found
+
+    def colliding(self, q, allowed=None):
+        """(N,) bool: which configurations of ``q`` (N, dof) come within the clearance of an obstacle
+        or touch themselves. The broad phase decides what it can both ways (a link surely clear, or
+        surely too near: a branch's capsule measured exactly, the canopy's distance field); coal
+        decides the rest."""
+        q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
+        allowed = _allowed(allowed)
+        seg = self.capsules.segments(q)
+        hit = np.array([c is not None for c in self._self_contacts(seg, np.zeros(len(q)))], bool)
+        triples, certain = self._candidates(seg, decide=True)
+        if allowed and certain.any():
+            # A link near an allowed region may touch inside it only: coal decides those.
+            ends = seg[triples[:, 0], triples[:, 1]]
+            r = self.capsules.radius[triples[:, 1]] + self.clearance
+            for a in allowed:
+                d = segment_distances(ends[:, 0], ends[:, 1], a.center, a.center)
+                certain &= d > a.radius + r
+        hit[triples[certain, 0]] = True
+        triples = triples[~certain]
+        triples = triples[~hit[triples[:, 0]]]
+        if len(triples):
+            frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
+            for m, (n, k, o) in enumerate(triples):
+                if not hit[n]:
+                    hit[n] = self._narrow(frames[m], lengths[m], k, o, n, 0.0, allowed) is not None
+        return hit
 
     def every_contact(self, q, times=None):
         """For each configuration of ``q`` (N, dof), the list of every link's contacts, one per
         link and obstacle (the arm's own links included only with self-collision on)."""
         q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
-        times = np.arange(len(q), dtype=float) if times is None else np.asarray(times, float)
+        times = np.full(len(q), np.nan) if times is None else np.asarray(times, float)
         seg = self.capsules.segments(q)
         out = [[c] if c is not None else [] for c in self._self_contacts(seg, times)]
-        triples = self._candidates(seg)
+        triples, _ = self._candidates(seg)
         if len(triples):
             frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
             for m, (n, k, o) in enumerate(triples):
@@ -145,12 +193,12 @@ class CollisionChecker:
 
     def _contacts(self, q, times, allowed, first):
         q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
-        times = np.arange(len(q), dtype=float) if times is None else np.asarray(times, float)
-        allowed = [] if allowed is None else ([allowed] if isinstance(allowed, Allowed) else list(allowed))
+        times = np.full(len(q), np.nan) if times is None else np.asarray(times, float)
+        allowed = _allowed(allowed)
         seg = self.capsules.segments(q)                                   # (N, K, 2, 3)
         found = self._self_contacts(seg, times)
         earliest = next((n for n, c in enumerate(found) if c is not None), len(q))
-        triples = self._candidates(seg)
+        triples, _ = self._candidates(seg)
         if not len(triples):
             return found
         frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
@@ -163,40 +211,53 @@ class CollisionChecker:
                     earliest = min(earliest, n)
         return found
 
-    def _candidates(self, seg):
-        """``(sample, link, obstacle)`` triples the broad phase cannot clear, sorted by sample;
-        obstacle is an index into the scene, or -1 for the canopy."""
+    def _candidates(self, seg, decide=False):
+        """``(triples, certain)``: the ``(sample, link, obstacle)`` triples the broad phase cannot
+        clear, sorted by sample (obstacle: an index into the scene, or -1 for the canopy), and, with
+        ``decide``, which of them it finds surely too near (no narrow phase needed)."""
         moving = self.moving
         seg = seg[:, moving]
-        r = self.capsules.radius[moving][None, :, None] + self.clearance
+        radius = self.capsules.radius[moving]
+        r = radius[None, :, None] + self.clearance
         lo, hi = seg.min(axis=2) - r, seg.max(axis=2) + r                 # (N, K, 3)
-        found = []
+        found, sure = [], []
         for i, o in enumerate(self.scene.obstacles):
             n, k = np.nonzero(np.all((lo <= o.hi) & (hi >= o.lo), axis=-1))
+            near = np.zeros(len(n), bool)
             if o.ends is not None and len(n):
-                # A branch or wire: its capsule's distance bounds the true one from below.
-                d = segment_distances(seg[n, k, 0], seg[n, k, 1], o.ends[0], o.ends[1])
-                near = d < self.capsules.radius[moving][k] + o.radius + self.clearance
-                n, k = n[near], k[near]
+                # A branch's capsule distance is the true one; a wire's (a cylinder) bounds it from below.
+                d = segment_distances(seg[n, k, 0], seg[n, k, 1], o.ends[0], o.ends[1]) - radius[k] - o.radius
+                keep = d < self.clearance
+                n, k, d = n[keep], k[keep], d[keep]
+                near = (d < self.clearance - 1e-9) if (decide and o.kind == 'branch') else np.zeros(len(n), bool)
             found.append(np.stack([n, moving[k], np.full_like(n, i)], axis=1))
+            sure.append(near)
         if self.canopy is not None:
-            n, k = np.nonzero(self._near_canopy(seg, self.capsules.radius[moving]))
+            maybe, surely = self._near_canopy(seg, radius)
+            n, k = np.nonzero(maybe)
             found.append(np.stack([n, moving[k], np.full_like(n, -1)], axis=1))
+            sure.append(surely[n, k] if decide else np.zeros(len(n), bool))
         if not found:
-            return np.zeros((0, 3), int)
-        triples = np.concatenate(found)
-        return triples[np.argsort(triples[:, 0], kind='stable')]
+            return np.zeros((0, 3), int), np.zeros(0, bool)
+        triples, certain = np.concatenate(found), np.concatenate(sure)
+        order = np.argsort(triples[:, 0], kind='stable')
+        return triples[order], certain[order]
 
     def _near_canopy(self, seg, radius):
-        """(N, K): True where a capsule (ends ``seg``, ``radius``) may come within the clearance of
-        the canopy's voxels: its segment covered by spheres, each checked against the distance field."""
+        """``(maybe, surely)``, (N, K) each: where a capsule (ends ``seg``, ``radius``) may come, and
+        surely comes, within the clearance of the canopy's voxels: its segment covered by spheres,
+        each checked against the distance field's bounds."""
         length = np.linalg.norm(seg[:, :, 1] - seg[:, :, 0], axis=-1).max(axis=0)          # (K,)
         m = int(np.ceil((length / np.maximum(radius, 0.01)).max())) + 1                  # spheres per capsule
         s = np.linspace(0.0, 1.0, m)
         centers = seg[:, :, None, 0] + s[None, None, :, None] * (seg[:, :, None, 1] - seg[:, :, None, 0])
-        # A sphere at each sample point covers the segment up to half the spacing on either side.
-        reach = radius + self.clearance + 0.5 * length / max(m - 1, 1)
-        return (self.canopy.lower_bound(centers) < reach[None, :, None]).any(axis=-1)
+        lower, upper = self.canopy.bounds(centers)
+        # A sphere at each sample point covers the segment up to half the spacing on either side; a point of
+        # the axis within radius + clearance of a voxel makes the capsule too near.
+        reach = (radius + self.clearance)[None, :, None]
+        maybe = (lower < reach + 0.5 * length[None, :, None] / max(m - 1, 1)).any(axis=-1)
+        surely = (upper < reach - 1e-9).any(axis=-1)
+        return maybe, surely
 
     def _narrow(self, frame, length, k, o, n, t, allowed):
         """coal's answer for capsule ``k`` (placed at ``frame``, ``length`` m) against obstacle ``o``

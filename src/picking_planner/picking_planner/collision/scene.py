@@ -191,7 +191,11 @@ class Scene:
 
 class Canopy:
     """A point cloud of the canopy (N, 3), m, in the arm's base frame: a coal octree of voxels of
-    edge ``resolution`` and a distance field around it for the broad phase."""
+    edge ``resolution`` and, for the broad phase, a distance field on the same grid in cells of half
+    that edge (every cell of an occupied voxel occupied)."""
+
+    #: Field cells per voxel edge.
+    SUB = 2
 
     def __init__(self, points, resolution=RESOLUTION):
         points = np.asarray(points, float).reshape(-1, 3)
@@ -202,24 +206,38 @@ class Canopy:
             raise ValueError(f'resolution must be positive, got {resolution}')
         self.points, self.resolution = points, float(resolution)
         self.octree = coal.makeOctree(np.ascontiguousarray(points), self.resolution)
-        self.lo, self.hi = points.min(axis=0), points.max(axis=0)
-        self.origin = self.lo - FIELD_PAD
-        shape = np.ceil((self.hi + FIELD_PAD - self.origin) / self.resolution).astype(int) + 1
+        # The octree's voxels are the cubes [k, k + 1) * resolution holding a point: the field's grid is aligned
+        # with them, so that its occupied cells are the voxels exactly.
+        voxels = np.unique(np.floor(points / self.resolution).astype(np.int64), axis=0)
+        pad = int(np.ceil(FIELD_PAD / self.resolution))
+        first = voxels.min(axis=0) - pad
+        self.cell = self.resolution / self.SUB
+        self.origin = first * self.resolution
+        shape = (voxels.max(axis=0) - first + pad + 1) * self.SUB
         free = np.ones(shape, bool)
-        free[tuple(np.floor((points - self.origin) / self.resolution).astype(int).T)] = False
-        self.field = distance_transform_edt(free, sampling=self.resolution)
+        for offset in np.ndindex(self.SUB, self.SUB, self.SUB):
+            free[tuple(((voxels - first) * self.SUB + offset).T)] = False
+        self.field = distance_transform_edt(free, sampling=self.cell)    # cell centre to the nearest occupied one
+        self.lo, self.hi = voxels.min(axis=0) * self.resolution, (voxels.max(axis=0) + 1) * self.resolution
 
     def __len__(self):
         return len(self.points)
 
-    def lower_bound(self, centers):
-        """A lower bound of the distance (m) from each point of ``centers`` (..., 3) to the cloud's
-        voxels: the field less a cell's diagonal inside, the distance to the cloud's box outside."""
+    def bounds(self, centers):
+        """``(lower, upper)`` bounds of the distance (m) from each point of ``centers`` (..., 3) to the
+        canopy's voxels: the field at the point's cell less (plus) the cell's half diagonal twice (once);
+        outside the field, the distance to the voxels' box and infinity."""
         centers = np.asarray(centers, float)
         outside = np.linalg.norm(np.maximum(0.0, np.maximum(self.lo - centers, centers - self.hi)), axis=-1)
-        cell = np.floor((centers - self.origin) / self.resolution).astype(int)
+        cell = np.floor((centers - self.origin) / self.cell).astype(np.int64)
         inside = np.all((cell >= 0) & (cell < self.field.shape), axis=-1)
-        bound = outside - self.resolution                                 # a voxel reaches past its point
-        idx = tuple(cell[inside].T)
-        bound[inside] = self.field[idx] - 2.0 * math.sqrt(3.0) * self.resolution
-        return bound
+        lower, upper = outside.copy(), np.full(outside.shape, np.inf)
+        value = self.field[tuple(cell[inside].T)]
+        half = 0.5 * math.sqrt(3.0) * self.cell
+        lower[inside] = np.maximum(value - 2.0 * half, 0.0)
+        upper[inside] = value + half
+        return lower, upper
+
+    def lower_bound(self, centers):
+        """A lower bound of the distance (m) from each point of ``centers`` (..., 3) to the canopy's voxels."""
+        return self.bounds(centers)[0]
