@@ -19,7 +19,10 @@ from scipy.spatial.transform import Rotation
 
 from .collision import Allowed
 from .kinematics import Unreachable
+from .planning.joint_path import NoPath, rrt_connect
 
+#: The joint moves of the cycle that may go around an obstacle (pick_cycle.DETOURS).
+DETOURS = ('P1 approach', 'P4 above the box', 'P0 back home')
 #: rad: the tilts tried, in steps up to the cone.
 TILT_STEP = np.radians(15.0)
 #: Directions of tilt around the grasp axis.
@@ -90,8 +93,7 @@ def clear_cycle(cycle, plan_one, T_apple):
         first = Blocked(f'the requested approach hits {blocked[0]}')
     else:
         try:
-            plan = plan_one(T_apple)
-            contact = None if checker is None else check(checker, plan, allowed)
+            plan, contact = _clear_plan(cycle, plan_one, T_apple, allowed)
             if contact is None:
                 return plan
             first = Blocked(f'the requested approach hits {contact}')
@@ -102,10 +104,9 @@ def clear_cycle(cycle, plan_one, T_apple):
     passed, blockers, _ = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
     for approach in passed[:MAX_CYCLES]:
         try:
-            plan = plan_one(approach.pose)
+            plan, contact = _clear_plan(cycle, plan_one, approach.pose, allowed)
         except Unreachable:
             continue
-        contact = None if checker is None else check(checker, plan, allowed)
         if contact is None:
             plan.extra.update(approach=approach.words(), approach_tilt=approach.tilt, approach_roll=approach.roll)
             return plan
@@ -115,6 +116,34 @@ def clear_cycle(cycle, plan_one, T_apple):
         name, _ = blockers.most_common(1)[0]
         raise Blocked(f'{name} blocks every approach within {cone} ({first})')
     raise Unreachable(f'{first}; no other approach within {cone} reaches it either') from None
+
+
+def _clear_plan(cycle, plan_one, T, allowed):
+    """``(plan, contact)``: the cycle for the grasp pose ``T`` and its first contact (None: clear).
+    A joint move that hits something (one of the cycle's DETOURS) goes around it through the
+    waypoints of a collision-free joint path (RRT-Connect, shortcut), and the cycle is planned again."""
+    checker = cycle.checker
+    plan = plan_one(T)
+    if checker is None:
+        return plan, None
+    contact = check(checker, plan, allowed)
+    detours = {}
+    while contact is not None and contact.part in DETOURS and contact.part not in detours:
+        seg = next(x for x in plan.segments if x.label == contact.part)
+        ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :cycle.arm.dof]
+        try:
+            path = rrt_connect(lambda q: checker.colliding(q, allowed), ends[0], ends[1], cycle.arm.lower,
+                               cycle.arm.upper)
+        except NoPath:
+            break
+        if len(path) <= 2:                           # the straight way is clear: the timed move is not
+            break
+        detours[contact.part] = list(path[1:-1])
+        plan = plan_one(T, detours)
+        contact = check(checker, plan, allowed)
+    if contact is None and detours:
+        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoints' for label, w in detours.items())
+    return plan, contact
 
 
 def check(checker, plan, allowed):

@@ -233,11 +233,14 @@ class PickCycle:
         obstacle.
         """
         return approaches.clear_cycle(
-            self, lambda T: self._plan(start, T, gripper_start, from_box, home_after), T_apple)
+            self, lambda T, detours=None: self._plan(start, T, gripper_start, from_box, home_after, detours), T_apple)
 
-    def _plan(self, start, T_apple, gripper_start, from_box, home_after):
-        """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`)."""
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None):
+        """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
+        label of a joint move (:data:`~picking_planner.approaches.DETOURS`) to joint waypoints it passes through on its way
+        (a collision-free path around an obstacle)."""
         pl, s, arm = self.planner, self.s, self.arm
+        detours = detours or {}
         start = pl.check_start(start)
         if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
@@ -284,11 +287,12 @@ class PickCycle:
         def approach(line, rise=None):
             """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple."""
             vf, af = blend_state(line, False) or (None, None)
-            if rise is None:
-                return pl.joint_move(home, line.start_state()[0], joint_method, vf=vf, af=af)
-            v0, a0 = blend_state(rise, True) or (None, None)
-            return pl.joint_move(rise.end_state()[0], line.start_state()[0], joint_method, v0=v0, a0=a0,
-                                 vf=vf, af=af)
+            q0 = home if rise is None else rise.end_state()[0]
+            v0, a0 = (None, None) if rise is None else (blend_state(rise, True) or (None, None))
+            if 'P1 approach' in detours:
+                return self._detour([q0, *detours['P1 approach'], line.start_state()[0]],
+                                    None if v0 is None else (v0, a0), None if vf is None else (vf, af))
+            return pl.joint_move(q0, line.start_state()[0], joint_method, v0=v0, a0=a0, vf=vf, af=af)
 
         def transfer(lift, into_box=None):
             """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
@@ -296,8 +300,9 @@ class PickCycle:
             q_box = q4 if into_box is None else into_box.start_state()[0]
             # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
             corner = q_lift if q_top is None else q_top
-            return pl.via(np.array([q_lift, self._clearance(corner, q['P4']), q_box]), s.transfer_method,
-                           blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
+            through = detours.get('P4 above the box', [self._clearance(corner, q['P4'])])
+            return pl.via(np.array([q_lift, *through, q_box]), s.transfer_method,
+                          blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
         # With a blend radius the joint moves meet the lines that far from P1, P3 and P4: the
         # lines are that much shorter, and the corners are rounded by the joint moves.
@@ -336,9 +341,17 @@ class PickCycle:
         q_box = traj.end_state()[0]
         add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
         if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
-            for part in self._home_from_box((q_box, 0.0 * q_box, 0.0 * q_box)):
+            for part in self._home_from_box((q_box, 0.0 * q_box, 0.0 * q_box), detours.get('P0 back home')):
                 add(*part)
         return self._with_gripper(parts, cart, gripper_start)
+
+    def _detour(self, qs, start, end):
+        """A joint move through the waypoints ``qs``, timed with the transfer's via-point method (from
+        and to rest unless that method is ``optimal``, which also starts and ends moving)."""
+        method = self.s.transfer_method
+        if method != 'optimal':
+            start = end = None
+        return self.planner.via(np.array(qs), method, start, end)
 
     def back_home(self, start, gripper_start=None):
         """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper."""
@@ -353,18 +366,21 @@ class PickCycle:
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + ('gripper_joint',), events)
 
-    def _home_from_box(self, start):
+    def _home_from_box(self, start, through=None):
         """``(label, method, traj, path)`` of each part from rest in the box back home: straight up out of
-        the box (the way in, reversed), flowing into the move home, or (without blends) through P4."""
+        the box (the way in, reversed), flowing into the move home, or (without blends) through P4;
+        ``through``: joint waypoints of the move home (a detour)."""
         pl, s = self.planner, self.s
         home = np.asarray(s.home_positions, float)
         q_box, q_top, rise_line = self._out_of_the_box(start)
         if not s.blend:
-            return [('P0 back home', s.transfer_method, pl.via(np.array([q_box, q_top, home]), s.transfer_method),
-                     None)]
+            return [('P0 back home', s.transfer_method, pl.via(np.array([q_box, q_top, *(through or []), home]),
+                                                               s.transfer_method), None)]
 
         def home_from(rise):
             v0, a0 = rise.end_state()[1:]
+            if through:
+                return self._detour([rise.end_state()[0], *through, home], (v0, a0), None)
             return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
         moved, (traj, path) = self._quickest(BLEND_SPEEDS, rise_line, home_from)
         return [('P4 out of the box', 'line', traj, path), ('P0 back home', s.transfer_method, moved, None)]

@@ -211,3 +211,40 @@ def test_an_orchard_tree_is_seeded_its_apples_clear_of_its_branches_and_some_han
     for i in a.blocked:
         with pytest.raises(Unreachable):
             straight.plan((HOME, 0 * HOME, 0 * HOME), a.apples[i])
+
+
+def test_a_wire_across_the_transfer_is_passed_on_a_joint_path_around_it(cycle, caps):
+    from picking_planner.collision.scene import rod
+    T = apple()
+    start = (HOME, 0 * HOME, 0 * HOME)
+    plan = cycle.plan(start, T)
+    transfer = next(s for s in plan.segments if s.label == 'P4 above the box')
+    t = transfer.start + 0.5 * transfer.duration
+    q0, q1 = np.asarray(plan.trajectory.sample([t, t + 0.05])[0])[:, :6]
+    p, ahead = cycle.arm.fk(q0)[:3, 3], cycle.arm.fk(q1)[:3, 3]
+    along = (ahead - p) * [1, 1, 0]
+    across = np.cross(along / np.linalg.norm(along), [0.0, 0.0, 1.0])
+    wire = rod('wire', 'wire', p - 0.2 * across, p + 0.2 * across, 0.003)        # across the tool's way to the box
+    checker = CollisionChecker(caps, Scene((wire,)))
+    assert checker.check(plan.trajectory) is not None                            # the plan without it hits it
+    around = PickCycle(cycle.planner, cycle.s, checker).plan(start, T)
+    assert 'P4 above the box through' in around.extra['detours']
+    assert checker.check(around.trajectory, Allowed(T[:3, 3], cycle.s.apple_region)) is None
+
+
+def test_a_joint_path_is_found_around_an_obstacle_and_shortcut():
+    from picking_planner.planning.joint_path import NoPath, clear_edge, rrt_connect
+    # Two joints; a wall at 0.4 < q0 < 0.6 for q1 < 0.8: the way from (0, 0) to (1, 0) goes over it.
+    def colliding(q):
+        q = np.atleast_2d(q)
+        return (q[:, 0] > 0.4) & (q[:, 0] < 0.6) & (q[:, 1] < 0.8)
+    lower, upper = np.array([-1.0, -1.0]), np.array([2.0, 2.0])
+    path = rrt_connect(colliding, [0.0, 0.0], [1.0, 0.0], lower, upper)
+    assert np.allclose(path[0], [0, 0]) and np.allclose(path[-1], [1, 0]) and len(path) >= 3
+    assert all(clear_edge(colliding, a, b) for a, b in zip(path[:-1], path[1:]))
+    assert path[:, 1].max() >= 0.8
+    with pytest.raises(NoPath, match='not clear'):
+        rrt_connect(colliding, [0.5, 0.0], [1.0, 0.0], lower, upper)
+    with pytest.raises(NoPath, match='no collision-free joint path'):
+        rrt_connect(lambda q: (np.atleast_2d(q)[:, 0] > 0.4) & (np.atleast_2d(q)[:, 0] < 0.6), [0.0, 0.0],
+                    [1.0, 0.0], lower, upper, iterations=200)      # a wall across the whole space
