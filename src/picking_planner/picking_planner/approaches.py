@@ -93,7 +93,7 @@ def clear_cycle(cycle, plan_one, T_apple):
         first = Blocked(f'the requested approach hits {blocked[0]}')
     else:
         try:
-            plan, contact = _clear_plan(cycle, plan_one, T_apple, allowed)
+            plan, contact = clear_plan(cycle, lambda detours=None: plan_one(T_apple, detours), allowed)
             if contact is None:
                 return plan
             first = Blocked(f'the requested approach hits {contact}')
@@ -104,7 +104,7 @@ def clear_cycle(cycle, plan_one, T_apple):
     passed, blockers, _ = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
     for approach in passed[:MAX_CYCLES]:
         try:
-            plan, contact = _clear_plan(cycle, plan_one, approach.pose, allowed)
+            plan, contact = clear_plan(cycle, lambda detours=None, T=approach.pose: plan_one(T, detours), allowed)
         except Unreachable:
             continue
         if contact is None:
@@ -118,12 +118,12 @@ def clear_cycle(cycle, plan_one, T_apple):
     raise Unreachable(f'{first}; no other approach within {cone} reaches it either') from None
 
 
-def _clear_plan(cycle, plan_one, T, allowed):
-    """``(plan, contact)``: the cycle for the grasp pose ``T`` and its first contact (None: clear).
-    A joint move that hits something (one of the cycle's DETOURS) goes around it through the
-    waypoints of a collision-free joint path (RRT-Connect, shortcut), and the cycle is planned again."""
+def clear_plan(cycle, make, allowed):
+    """``(plan, contact)``: ``make(detours)``'s plan and its first contact (None: clear). A joint move
+    that hits something (one of the cycle's DETOURS) goes around it through the waypoints of a
+    collision-free joint path (RRT-Connect, shortcut), and the plan is made again with them."""
     checker = cycle.checker
-    plan = plan_one(T)
+    plan = make()
     if checker is None:
         return plan, None
     contact = check(checker, plan, allowed)
@@ -139,7 +139,7 @@ def _clear_plan(cycle, plan_one, T, allowed):
         if len(path) <= 2:                           # the straight way is clear: the timed move is not
             break
         detours[contact.part] = list(path[1:-1])
-        plan = plan_one(T, detours)
+        plan = make(detours)
         contact = check(checker, plan, allowed)
     if contact is None and detours:
         plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoints' for label, w in detours.items())

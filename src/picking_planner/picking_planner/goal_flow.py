@@ -26,7 +26,7 @@ from picking_common.topics import newest_waiting
 
 from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
 from .harvest import Harvest, HarvestGoal, HarvestRun
-from .collision import Allowed
+from .collision import STEP as COLLISION_STEP, Allowed
 from .kinematics import Unreachable, pose_matrix
 from .kinematics.paths import check_joint_limits
 from .lifecycle import Ending, Flight, Outcome
@@ -320,7 +320,7 @@ class GoalFlow:
         # Every plan is checked against the world before it is sent (a pick's cycles were planned clear of
         # it; this also catches a pose or path goal's plan, and a harvest's way home).
         regions = [Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in getattr(goal.plan, 'apples', ())]
-        contact = self.world.check(plan.trajectory, regions)
+        contact = self.world.check(plan.trajectory, regions, slack=COLLISION_STEP / 2)
         if contact is not None:
             self._end(goal, Ending(Outcome.REFUSED, f'the plan would hit an obstacle: {contact}'))
             return

@@ -3,9 +3,9 @@ and measured on.
 
 A trellised tree in front of the arm: the trunk and scaffold branches (in the scene, as capsules),
 two trellis wires (thin cylinders), and apples among them, grasped along +x as a synthetic tree's.
-Twigs are seen only by the canopy cloud: a fraction of the apples hang behind one, across the
-straight approach, close enough that the gripper would touch it. The cloud holds the woody parts
-(twigs, scaffolds, the trunk) a depth camera would see once the apples, the targets, are taken out.
+A fraction of the apples hang behind a twig, across the straight approach, close enough that the
+gripper would touch it (in the scene, and in the cloud). The cloud holds the woody parts (twigs,
+scaffolds, the trunk) a depth camera would see once the apples, the targets, are taken out.
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ APPLE_GAP = 0.09
 #: m: the box the apples hang in (a synthetic tree's), and how far apart they are at least.
 LOW, HIGH, SPACING = (0.55, -0.35, 0.40), (0.80, 0.35, 0.85), 0.10
 #: Fraction of the apples a twig hangs in front of.
-TWIG_SHARE = 0.4
+TWIG_SHARE = 0.5
 #: m: a twig's surface at least this far from the arm resting at home.
-HOME_GAP = 0.15
+HOME_GAP = 0.12
 #: m: twigs hang only in front of apples at least this deep in the canopy (x).
-TWIG_DEPTH = 0.72
+TWIG_DEPTH = 0.70
 #: m: the way in to every other apple, this long along -x from it, stays 10 cm from a twig.
 OTHERS_REACH = 0.15
 #: m: points of the cloud on a surface, about this far apart.
@@ -92,11 +92,11 @@ def orchard_tree(n, seed=0, home=HOME_POSITIONS):
         # Across the straight approach (along +x), in front of the apple and below its grasp axis: near
         # enough that the straight gripper touches it, far enough that one tilted from above can pass.
         yaw = rng.uniform(-0.5, 0.5)
-        half = 0.15 * np.array([np.sin(yaw), np.cos(yaw), 0.0])
+        half = 0.1 * np.array([np.sin(yaw), np.cos(yaw), 0.0])
         middle = a + [-rng.uniform(0.085, 0.10), 0.0, -rng.uniform(0.065, 0.08)]
         ends = np.array([middle - half, middle + half])
         others = np.delete(centres, i, axis=0)
-        if len(others) and segment_distances(others - [OTHERS_REACH, 0.0, 0.0], others, ends[0], ends[1]).min() < 0.09:
+        if len(others) and segment_distances(others - [OTHERS_REACH, 0.0, 0.0], others, ends[0], ends[1]).min() < 0.08:
             continue                                    # it would block another apple too
         arm = segment_distances(at_home[:, 0], at_home[:, 1], ends[0], ends[1]) - capsules.radius
         if arm.min() < HOME_GAP:
@@ -108,6 +108,9 @@ def orchard_tree(n, seed=0, home=HOME_POSITIONS):
     radii = np.array(radii)
     cloud = np.vstack([_surface(e[0], e[1], r, rng) for e, r in zip(twigs, radii)]
                       + [_surface(r.ends[0], r.ends[1], r.radius, rng) for r in rods if r.kind == 'branch'])
+    # The twigs are in the scene too, so that the simulator, which watches the scene, sees them touched.
+    scene = Scene(scene.obstacles + tuple(rod(f'twig {k + 1}', 'branch', e[0], e[1], r)
+                                          for k, (e, r) in enumerate(zip(twigs, radii))), scene.frame)
     return Orchard(scene, apples, twigs, radii, cloud, tuple(sorted(blocked)))
 
 

@@ -354,10 +354,16 @@ class PickCycle:
         return self.planner.via(np.array(qs), method, start, end)
 
     def back_home(self, start, gripper_start=None):
-        """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper."""
-        parts = self._home_from_box(start)
-        cart = [(k, part[3]) for k, part in enumerate(parts) if part[3] is not None]
-        return self._with_gripper([part[:3] for part in parts], cart, gripper_start)
+        """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper;
+        with a checker, clear of its obstacles (around them if need be), else Blocked naming the contact."""
+        def plan(detours=None):
+            parts = self._home_from_box(start, (detours or {}).get('P0 back home'))
+            cart = [(k, part[3]) for k, part in enumerate(parts) if part[3] is not None]
+            return self._with_gripper([part[:3] for part in parts], cart, gripper_start)
+        done, contact = approaches.clear_plan(self, plan, None)
+        if contact is not None:
+            raise approaches.Blocked(f'the way home from the box hits {contact}')
+        return done
 
     def _with_gripper(self, parts, cart, gripper_start):
         """The Plan of the parts ``(label, method, traj)``, the gripper's opening as its last joint."""

@@ -256,14 +256,14 @@ def plot_orchard(path, orchard, picked, skipped, tools, title):
 
     def draw(ax, i, j):
         for o in orchard.scene.obstacles:
-            if o.ends is None:
+            if o.ends is None or o.name.startswith('twig'):            # (the twigs are drawn below)
                 continue
             e = np.clip(o.ends, lo, hi)              # a wire along the whole row: the part beside the tree
             ax.plot(e[:, i], e[:, j], color='saddlebrown' if o.kind == 'branch' else '0.4', lw=_width(o.radius),
                     alpha=0.8, solid_capstyle='round', label=f'{"branches" if o.kind == "branch" else "wires"} (scene)')
         for e, r in zip(orchard.twigs, orchard.twig_radius):
             ax.plot(e[:, i], e[:, j], color='peru', lw=_width(r), alpha=0.9, solid_capstyle='round',
-                    label='twigs (canopy cloud)')
+                    label='twigs (scene and cloud)')
         for label, tool in tools.items():
             if len(tool):
                 ax.plot(tool[:, i], tool[:, j], label=f'tool path, {label}', **styles[label])

@@ -172,10 +172,10 @@ def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
     T = apple()
     pick = PickCycle(cycle.planner, cycle.s)
 
-    def plan_one(pose):
+    def plan_one(pose, detours=None):
         if np.allclose(pose, T):
             raise Unreachable('path fails at t = 0.244 s: wrist_3_joint would jump 0.363 rad')
-        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True)
+        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours)
     plan = approaches.clear_cycle(pick, plan_one, T)
     assert plan.extra['approach_tilt'] > 0.0 or plan.extra['approach_roll'] != 0.0
     narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))
@@ -202,7 +202,7 @@ def test_an_orchard_tree_is_seeded_its_apples_clear_of_its_branches_and_some_han
     for T in a.apples:
         p = T[:3, 3]
         for o in a.scene.obstacles:
-            if o.ends is not None:
+            if o.ends is not None and not o.name.startswith('twig'):
                 assert segment_distances(p, p, o.ends[0], o.ends[1]) - o.radius >= APPLE_GAP - 1e-9
     # Each twig crosses the straight approach of its apple: that cycle is not clear, and is refused
     # when no other approach may be tried.

@@ -214,7 +214,7 @@ def run_orchard(events, config, out, demo):
     """Scenario 5 after the others (their stacks stopped): its section appended to the report."""
     from ..orchard import orchard_tree
     from .demo_orchard import clear_apples, run_orchard_scenario
-    n, seed = int(demo.get('orchard_apples', 16)), int(demo.get('orchard_seed', 3))
+    n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
     demo = dict(demo, clear_apples=clear_apples(orchard_tree(n, seed), config))
     lines, files, checks = run_orchard_scenario(config, out, demo)
     report = out / 'report.md'

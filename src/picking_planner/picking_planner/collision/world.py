@@ -54,10 +54,16 @@ class World:
             self._checker = self._checker.replaced()
             self._checker.canopy = None
 
-    def check(self, trajectory, allowed=None):
-        """The first contact along ``trajectory``, or None (also when disabled)."""
+    def check(self, trajectory, allowed=None, slack=0.0):
+        """The first contact along ``trajectory``, or None (also when disabled); ``slack`` m less
+        clearance (a plan whose parts were each checked at samples STEP apart is checked again whole,
+        at other samples, allowing for how far a link may come closer between two of them)."""
         checker = self.checker
-        return None if checker is None else checker.check(trajectory, allowed)
+        if checker is None:
+            return None
+        if slack:
+            checker = checker.replaced(clearance=max(0.0, checker.clearance - slack))
+        return checker.check(trajectory, allowed)
 
     def words(self):
         """What the planner avoids, for its log."""
