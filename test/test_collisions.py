@@ -111,5 +111,38 @@ def test_a_canopy_cloud_is_taken_and_an_apple_inside_it_is_refused_with_what_blo
         # the obstacle that blocked most of the approaches it names (the branch or the cloud).
         assert 'blocks every approach within 45°' in answer.message, answer.message
     finally:
+        cleared = stack.planner.output().count('canopy cleared')
         pub.publish(cloud_message(np.zeros((0, 3)), 'base_link'))        # an empty cloud: no canopy
-        client.wait_for(lambda: 'canopy cleared' in stack.planner.output(), 20.0, 'the canopy cleared')
+        client.wait_for(lambda: stack.planner.output().count('canopy cleared') > cleared, 20.0, 'the canopy cleared')
+
+
+def test_a_cloud_that_comes_while_the_arm_moves_stops_a_plan_it_puts_something_in_the_way_of(arm):
+    """The canopy replaced mid-motion: the rest of the running pick is checked against it; the shell
+    around the apple now lies on its way, so the planner stops it (the controller brakes to rest)
+    and the goal ends aborted saying why."""
+    stack, client, contacts = arm
+    rng = np.random.default_rng(5)
+    shell = rng.normal(size=(3000, 3))
+    shell = A + 0.12 * shell / np.linalg.norm(shell, axis=1)[:, None]
+    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
+    client.wait_for(lambda: pub.get_subscription_count() > 0, 10.0, 'the planner on canopy_points')
+    mark = client.mark()
+    client.send(client.pub_pick, pick_msg())
+    client.wait_for(lambda: [m for m in client.answers(mark) if status_values(m).get('state') == 'executing'],
+                    30.0, 'the pick to run')
+    pub.publish(cloud_message(shell, 'base_link'))
+    try:
+        answer = final_answer(client, mark, 60.0)
+        assert status_values(answer)['state'] == 'aborted', answer.message
+        assert 'stopped: the world changed while it ran' in answer.message and 'the canopy' in answer.message
+        client.wait_for(lambda: arm_at_rest(client), 10.0, 'the arm at rest')
+    finally:
+        cleared = stack.planner.output().count('canopy cleared')
+        pub.publish(cloud_message(np.zeros((0, 3)), 'base_link'))
+        client.wait_for(lambda: stack.planner.output().count('canopy cleared') > cleared, 20.0, 'the canopy cleared')
+
+
+def arm_at_rest(client):
+    with client.lock:
+        recent = [np.asarray(m.velocity) for _, m in client.states[-5:] if len(m.velocity)]
+    return len(recent) == 5 and max(np.abs(v).max() for v in recent) < 1e-3

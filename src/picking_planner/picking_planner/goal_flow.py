@@ -201,6 +201,24 @@ class GoalFlow:
             handle.abort()
         return result
 
+    def _recheck_running(self):
+        """The world changed (a new scene or canopy): the rest of every plan the controller runs is
+        checked against it, and one that would now touch something is stopped there (the controller
+        brakes to rest; the goal ends aborted with the contact)."""
+        now = self._ros_now()
+        for flight in list(self.lifecycle.flights.values()):
+            if flight.handle is None or flight.plan is None or flight.cancel or flight.stopped:
+                continue
+            rest = _Rest(flight.plan, max(0.0, now - flight.start))
+            if rest.duration <= 0.0:
+                continue
+            contact = self.world.check(rest, list(flight.regions), slack=COLLISION_STEP / 2)
+            if contact is not None:
+                flight.stopped = (f'the world changed while it ran: {contact} (t from the change); the arm braked '
+                                  'to rest')
+                self.get_logger().warning(f'{flight.goal.kind} goal {flight.goal.key}: {flight.stopped}')
+                flight.handle.cancel_goal_async()
+
     def _cancel(self, handle):
         """A goal in flight is canceled at the controller (which brakes the arm to rest, then
         answers); a waiting one ends at once."""
@@ -348,7 +366,7 @@ class GoalFlow:
         policy.planned(goal, time.perf_counter() - t0)     # the next goal of its kind expects as long to be ready
         flight = self.lifecycle.sent(Flight(
             goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],
-            self._now(), stamp_key(stamp_ns)))
+            self._now(), stamp_key(stamp_ns), plan=plan.trajectory, regions=tuple(regions)))
         future = self.controller.send_goal_async(FollowJointTrajectory.Goal(trajectory=trajectory),
                                                  feedback_callback=partial(self._on_feedback, goal))
         future.add_done_callback(partial(self._on_response, goal))
@@ -423,3 +441,14 @@ class GoalFlow:
         self.get_logger().warning(f'{goal.kind} goal {goal.key}: the controller got its plan too late '
                                   f'({ending.message}); planning it again, further ahead')
         self._handle(late.goal)
+
+
+class _Rest:
+    """The part of a trajectory from ``t0`` (s) on, as its own trajectory (time 0 at ``t0``)."""
+
+    def __init__(self, trajectory, t0):
+        self.trajectory, self.t0 = trajectory, t0
+        self.duration = max(0.0, trajectory.duration - t0)
+
+    def sample(self, t):
+        return self.trajectory.sample(np.asarray(t, float) + self.t0)

@@ -62,6 +62,9 @@ class Flight:
     handle: object = None         # the controller's goal handle, once accepted
     cancel: bool = False          # its client asked to cancel it
     extra: dict = field(default_factory=dict)
+    plan: object = None           # the plan's trajectory (time 0 at ``start``), to check its rest again
+    regions: tuple = ()           # where touching is allowed along it (its apples)
+    stopped: str = ''             # why the planner stopped it at the controller (the world changed)
 
     def phase(self, now):
         """``(phase, time_left)`` at controller time ``now``: the segment the plan is in ('sent' or
@@ -140,6 +143,8 @@ class Lifecycle:
             return None
         if status == 'succeeded':
             return Ending(Outcome.SUCCEEDED, 'the arm is at rest at the goal', code)
+        if status == 'canceled' and flight.stopped:
+            return Ending(Outcome.ABORTED, f'stopped: {flight.stopped}', code)
         if status == 'canceled':
             return Ending(Outcome.CANCELED, f'canceled: {text}' if text else 'canceled', code)
         if flight.superseded and code in (INVALID_GOAL, OLD_HEADER_TIMESTAMP):

@@ -97,6 +97,8 @@ class PlannerNode(GoalFlow, Node):
         self.sub_scene = self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
         self.sub_canopy = self.create_subscription(PointCloud2, 'canopy_points', self._on_canopy, NEWEST)
         self._clouds = CloudBuilder(self)
+        # A new canopy (built on its own thread) has the running plans checked again in the executor's.
+        self._world_changed = self.create_guard_condition(self._recheck_running)
         self._harvests = {}           # goal key -> HarvestRun of the harvests sent and not ended, oldest first
         self.actions = [ActionServer(self, action, name, execute_callback=partial(self._execute, kind, plan),
                                      goal_callback=lambda _: GoalResponse.ACCEPT,
@@ -132,6 +134,7 @@ class PlannerNode(GoalFlow, Node):
             return
         self.world.replace(scene=scene)
         self.get_logger().info(f'scene replaced from the scene topic: avoiding {self.world.words()}')
+        self._recheck_running()
 
     def _on_canopy(self, msg):
         self._clouds.offer(msg)
@@ -295,3 +298,4 @@ class CloudBuilder:
             built += 1
             if built == 1:
                 logger.info(f'canopy from canopy_points: avoiding {self.node.world.words()}')
+            self.node._world_changed.trigger()

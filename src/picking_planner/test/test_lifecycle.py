@@ -75,3 +75,15 @@ def test_one_plan_at_a_time_waits_for_the_controllers_answer():
     assert life.unanswered()
     life.response('a', True, 10.4)
     assert not life.unanswered() and abs(life.latency - 0.4) < 1e-9     # delivery takes this long now
+
+
+def test_a_plan_the_planner_stopped_because_the_world_changed_ends_aborted_with_why():
+    life = Lifecycle()
+    f = life.sent(flight('run'))
+    life.response('run', True, 10.2)
+    f.stopped = 'the world changed while it ran: wrist_3_link 1.0 cm into the canopy'
+    ending = life.result('run', 'canceled', 0, 'canceled on request')
+    assert ending.outcome == Outcome.ABORTED and ending.message.startswith('stopped: the world changed')
+    other = life.sent(flight('asked'))
+    life.response('asked', True, 10.2)
+    assert life.result('asked', 'canceled', 0, '').outcome == Outcome.CANCELED and not other.stopped
