@@ -107,9 +107,14 @@ def test_a_contact_names_the_link_the_obstacle_where_and_how_near(cycle, caps):
 def test_the_arm_folded_onto_itself_is_a_self_collision(caps):
     checker = CollisionChecker(caps)
     assert checker.first_contact([HOME]) is None
-    folded = np.array([0.0, 0.2, 2.9, 0.0, 2.5, 0.0])          # the elbow shut: the wrist on the upper arm
+    folded = np.array([0.0, -1.0, 2.55, 0.0, 2.0, 0.0])        # the elbow shut: the gripper on the shoulder
     contact = checker.first_contact([HOME, folded])
     assert contact is not None and contact.index == 1 and 'the arm\'s' in contact.obstacle
+    # A plan that folds the arm onto itself on its way is not clear, and says when.
+    from picking_planner.planning import Planner, PlannerSettings
+    move = Planner(caps.arm, PlannerSettings()).joint_move(HOME, folded, 'quintic')
+    hit = checker.check(move)
+    assert hit is not None and 'the arm\'s' in hit.obstacle and 0.0 < hit.time <= move.duration
 
 
 def test_a_trajectory_is_checked_so_densely_that_no_link_moves_a_centimetre_between_checks(cycle, caps):
