@@ -143,6 +143,6 @@ def test_a_cloud_that_comes_while_the_arm_moves_stops_a_plan_it_puts_something_i
 
 
 def arm_at_rest(client):
-    with client.lock:
-        recent = [np.asarray(m.velocity) for _, m in client.states[-5:] if len(m.velocity)]
+    """The last five joint states at rest (called inside client.wait_for, which holds the client's lock)."""
+    recent = [np.asarray(m.velocity) for _, m in client.states[-5:] if len(m.velocity)]
     return len(recent) == 5 and max(np.abs(v).max() for v in recent) < 1e-3
