@@ -211,8 +211,9 @@ class SimNode(Node):
             else:
                 self.get_logger().warn(text)
             self.pub_contacts.publish(status('picking_sim', level, text, link=e.link, obstacle=e.obstacle,
-                                             state='started' if started else 'ended', start=e.start,
-                                             end=e.end if e.end is not None else '', x=e.point[0], y=e.point[1],
+                                             # (times as text: epoch seconds need more than 6 digits)
+                                             state='started' if started else 'ended', start=f'{e.start:.3f}',
+                                             end=f'{e.end:.3f}' if e.end is not None else '', x=e.point[0], y=e.point[1],
                                              z=e.point[2], depth=e.depth, contacts=self.witness.count))
 
     def _diagnose(self):
