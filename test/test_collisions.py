@@ -73,6 +73,7 @@ def test_with_checking_off_the_same_pick_hits_the_branch_and_the_witness_says_so
         client.wait_for(lambda: started(contacts, seen), 5.0, 'a contact on sim_contacts')
         hit = started(contacts, seen)[0]
         assert hit['obstacle'] == 'low branch' and float(hit['depth']) > 0.0, hit
+        assert abs(float(hit['start']) - time.time()) < 60.0, hit          # when, on the ROS clock
         assert hit['link'] in ('wrist_3_link', 'tool0', 'wrist_1_link', 'forearm_link')
     finally:
         client.set_planner_parameter('avoid_collisions', True)
