@@ -88,6 +88,12 @@ def test_a_pose_goal_into_the_branch_is_refused_naming_it(arm):
     assert 'would hit an obstacle' in answer.message and 'low branch' in answer.message, answer.message
 
 
+def shell_around(centre, seed, radius=0.12, n=3000):
+    """A cloud of ``n`` points on a sphere of ``radius`` m about ``centre``: an apple enclosed by the canopy."""
+    shell = np.random.default_rng(seed).normal(size=(n, 3))
+    return centre + radius * shell / np.linalg.norm(shell, axis=1)[:, None]
+
+
 def pick_pose_at(xyz):
     msg = pick_msg()
     msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in xyz)
@@ -96,9 +102,7 @@ def pick_pose_at(xyz):
 
 def test_a_canopy_cloud_is_taken_and_an_apple_inside_it_is_refused_with_what_blocks_it(arm):
     stack, client, contacts = arm
-    rng = np.random.default_rng(4)
-    shell = rng.normal(size=(3000, 3))
-    shell = A + 0.12 * shell / np.linalg.norm(shell, axis=1)[:, None]
+    shell = shell_around(A, seed=4)
     pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
     client.wait_for(lambda: pub.get_subscription_count() > 0, 10.0, 'the planner on canopy_points')
     pub.publish(cloud_message(shell, 'base_link'))
@@ -122,9 +126,7 @@ def test_a_cloud_that_comes_while_the_arm_moves_stops_a_plan_it_puts_something_i
     around the apple now lies on its way, so the planner stops it (the controller brakes to rest)
     and the goal ends aborted saying why."""
     stack, client, contacts = arm
-    rng = np.random.default_rng(5)
-    shell = rng.normal(size=(3000, 3))
-    shell = A + 0.12 * shell / np.linalg.norm(shell, axis=1)[:, None]
+    shell = shell_around(A, seed=5)
     pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
     client.wait_for(lambda: pub.get_subscription_count() > 0, 10.0, 'the planner on canopy_points')
     mark = client.mark()

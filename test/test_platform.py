@@ -14,6 +14,7 @@ import pytest
 from sensor_msgs.msg import JointState
 
 from picking_common.joint_state import reorder
+from picking_common.run import BackgroundSpin
 from picking_planner.kinematics.capsules import ArmCapsules, capsule_distances
 from picking_planner.platform import CLEARANCE, Coordinator, Platform
 from rosstack import RELIABLE, ensure_rclpy
@@ -59,23 +60,16 @@ def platform(tmp_path_factory):
 
 def test_two_arms_harvest_a_tree_and_never_come_within_the_clearance(platform):
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     node = rclpy.create_node(f'platform_witness_{os.getpid()}')
     p = Platform.from_yaml(CONFIG / 'platform.yaml', 'two')
     witness = Witness(node, p, [h.arm for h in Coordinator.from_platform(p).harvests])
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)],
-                               daemon=True)
-    spinner.start()
+    spinner = BackgroundSpin(node)
     try:
         done = subprocess.run([str(BIN / 'picking-goal'), 'tree', '--tree', '8', '--seed', '2', '--layout', 'two',
                                '--timeout', '60', '--ros-args', '-r', f'__ns:={NS}'],
                               capture_output=True, text=True, timeout=400, env=os.environ.copy())
     finally:
-        stop.set()
-        spinner.join(5)
+        spinner.stop()
         node.destroy_node()
     out = done.stdout
     assert done.returncode == 0, out + done.stderr

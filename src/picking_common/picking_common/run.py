@@ -109,3 +109,24 @@ def _warn_if_named_twice(node):
                                     'each answers every message (trajectories run twice, goals planned twice); '
                                     'stop all but one, or start this one in its own namespace (-r __ns:=/arm2)')
     timer = node.create_timer(NAME_CHECK, check)
+
+
+class BackgroundSpin:
+    """``node``'s callbacks run on a thread of their own until :meth:`stop` (a tool or test that
+    goes on doing its own work meanwhile)."""
+
+    def __init__(self, node, period=0.05):
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, args=(period,), daemon=True)
+        self._thread.start()
+
+    def _spin(self, period):
+        while not self._stop.is_set():
+            self._executor.spin_once(timeout_sec=period)
+
+    def stop(self, timeout=5.0):
+        self._stop.set()
+        self._thread.join(timeout)
+        self._executor.shutdown()

@@ -51,7 +51,7 @@ from .parameters import COLLISION, PARAMS, PICK, SETTINGS
 from .pick_cycle import PickSettings
 from .planning import Planner, PlannerSettings
 from .resources import config_dir, default_urdf
-from .scene_msgs import cloud_points, scene_from_markers
+from .scene_msgs import cloud_points, take_scene
 
 
 class PlannerNode(GoalFlow, Node):
@@ -93,7 +93,7 @@ class PlannerNode(GoalFlow, Node):
         self.sub_pick = self.create_subscription(PoseStamped, 'pick_target', self._on_pick_target, BURST)
         self.sub_harvest = self.create_subscription(PoseArray, 'harvest_targets', self._on_harvest_targets, BURST)
         # The world: a scene replaced whole by a latched MarkerArray, and the canopy by each cloud, built
-        # into its octree on a thread of its own (a cloud every 33 ms never waits for a plan, nor a plan for it).
+        # into its octree on a thread of its own (a camera's clouds never wait for a plan, nor a plan for them).
         self.sub_scene = self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
         self.sub_canopy = self.create_subscription(PointCloud2, 'canopy_points', self._on_canopy, NEWEST)
         self._clouds = CloudBuilder(self)
@@ -127,10 +127,8 @@ class PlannerNode(GoalFlow, Node):
         return scene
 
     def _on_scene(self, msg):
-        try:
-            scene = scene_from_markers(msg, self.arm.base_frame)
-        except ValueError as exc:
-            self.get_logger().error(f'scene refused, the old one kept: {exc}')
+        scene = take_scene(msg, self.arm.base_frame, self.get_logger())
+        if scene is None:
             return
         self.world.replace(scene=scene)
         self.get_logger().info(f'scene replaced from the scene topic: avoiding {self.world.words()}')

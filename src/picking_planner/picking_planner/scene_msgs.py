@@ -69,6 +69,16 @@ def scene_from_markers(msg, frame):
     return Scene().merged(obstacles, 'the scene topic')
 
 
+def take_scene(msg, frame, logger):
+    """The :class:`Scene` of a ``scene`` message for a node in ``frame``, or None after logging why it
+    was refused (the node keeps its old scene)."""
+    try:
+        return scene_from_markers(msg, frame)
+    except ValueError as exc:
+        logger.error(f'scene refused, the old one kept: {exc}')
+        return None
+
+
 def scene_markers(scene, frame, stamp=None):
     """A MarkerArray drawing ``scene`` (read back by :func:`scene_from_markers`)."""
     out = MarkerArray()

@@ -34,7 +34,7 @@ from picking_planner.collision import CollisionChecker, Scene
 from picking_planner.kinematics import ArmModel
 from picking_planner.kinematics.capsules import ArmCapsules
 from picking_planner.resources import config_dir, default_urdf
-from picking_planner.scene_msgs import scene_from_markers
+from picking_planner.scene_msgs import take_scene
 
 from .parameters import PARAMS
 from .servo import Servo, ServoParams
@@ -188,10 +188,8 @@ class SimNode(Node):
         self._watched.append((t_state, self.servo.q[:self.arm.dof].copy()))
 
     def _on_scene(self, msg):
-        try:
-            scene = scene_from_markers(msg, self.arm.base_frame)
-        except ValueError as exc:
-            self.get_logger().error(f'scene refused, the old one kept: {exc}')
+        scene = take_scene(msg, self.arm.base_frame, self.get_logger())
+        if scene is None:
             return
         self.witness.checker = self.witness.checker.replaced(scene=scene)
         self.get_logger().info(f'watching the arm against {len(scene)} obstacles from the scene topic')

@@ -202,12 +202,7 @@ def run_platform(rec, events, config, out, demo):
     if 'harvest' in events:
         rate = harvest_statuses(rec, events['harvest']['goal'])['final'].get('apples_per_hour')
         demo = dict(demo, one_arm_rate=float(rate) if rate else None)
-    lines, files, checks = run_platform_scenario(config, out, demo)
-    report = out / 'report.md'
-    report.write_text(report.read_text() + '\n'.join(lines + ['', *[f'- `{f}`' for f in files]]) + '\n')
-    print('\n'.join(lines))
-    events['platform'] = checks
-    return all(checks.values())
+    return _section(out, events, 'platform', *run_platform_scenario(config, out, demo))
 
 
 def run_orchard(events, config, out, demo):
@@ -216,11 +211,16 @@ def run_orchard(events, config, out, demo):
     from .demo_orchard import clear_apples, run_orchard_scenario
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
     demo = dict(demo, clear_apples=clear_apples(orchard_tree(n, seed), config))
-    lines, files, checks = run_orchard_scenario(config, out, demo)
+    return _section(out, events, 'orchard', *run_orchard_scenario(config, out, demo))
+
+
+def _section(out, events, name, lines, files, checks):
+    """A scenario's section appended to the report (and printed); its checks kept in ``events``; whether
+    they all hold."""
     report = out / 'report.md'
     report.write_text(report.read_text() + '\n'.join(lines + ['', *[f'- `{f}`' for f in files]]) + '\n')
     print('\n'.join(lines))
-    events['orchard'] = checks
+    events[name] = checks
     return all(checks.values())
 
 

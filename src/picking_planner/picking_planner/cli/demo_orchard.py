@@ -6,7 +6,6 @@ PointCloud2) and reported with ``orchard.png``."""
 from __future__ import annotations
 
 import os
-import threading
 import time
 
 import numpy as np
@@ -23,7 +22,6 @@ def run_orchard_scenario(config, out, demo):
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
     from geometry_msgs.msg import Pose, PoseArray
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -31,6 +29,7 @@ def run_orchard_scenario(config, out, demo):
     from sensor_msgs.msg import JointState, PointCloud2
     from visualization_msgs.msg import MarkerArray
 
+    from picking_common.run import BackgroundSpin
     from picking_common.topics import BURST, LATCHED
 
     from ..kinematics import ArmModel
@@ -57,12 +56,7 @@ def run_orchard_scenario(config, out, demo):
     scene_pub = node.create_publisher(MarkerArray, 'scene', LATCHED)
     cloud_pub = node.create_publisher(PointCloud2, 'canopy_points', reliable)
     harvest_pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)],
-                               daemon=True)
-    spinner.start()
+    spinner = BackgroundSpin(node)
 
     def wait(pred, timeout, what):
         end = time.monotonic() + timeout
@@ -123,9 +117,7 @@ def run_orchard_scenario(config, out, demo):
         codes = stack.stop()
         for name, code in codes.items():
             log(f'stopped {name}: exit code {code}')
-    stop.set()
-    spinner.join(2.0)
-    executor.shutdown()
+    spinner.stop(2.0)
     node.destroy_node()
     rclpy.try_shutdown()
 

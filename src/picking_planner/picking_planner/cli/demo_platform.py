@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import threading
 import time
 
 import numpy as np
@@ -18,10 +17,11 @@ def run_platform_scenario(config, out, demo):
     """Start the platform, harvest the tree, stop it; returns ``(report lines, files, checks)``."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
+
+    from picking_common.run import BackgroundSpin
 
     from ..platform import Coordinator, Platform
     from ..recording import Recorder
@@ -42,12 +42,7 @@ def run_platform_scenario(config, out, demo):
     rec = Recorder(node, {'/harvester_status': DiagnosticStatus, '/tree_markers': MarkerArray}, reliable)
     rec.add(node, {f'/{ns}/joint_states': JointState for ns in names}, qos_profile_sensor_data)
     markers = node.create_publisher(MarkerArray, '/tree_markers', 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)],
-                               daemon=True)
-    spinner.start()
+    spinner = BackgroundSpin(node)
     done = None
     try:
         stack.wait_ready()
@@ -80,9 +75,7 @@ def run_platform_scenario(config, out, demo):
     deadline = time.monotonic() + 5.0
     while rec.count('/tree_markers') == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
-    stop.set()
-    spinner.join(2.0)
-    executor.shutdown()
+    spinner.stop(2.0)
     node.destroy_node()
     rclpy.try_shutdown()
 
