@@ -184,10 +184,6 @@ class Scene:
     def __len__(self):
         return len(self.obstacles)
 
-    def without(self, kinds):
-        """The scene less every obstacle of the given kinds."""
-        return Scene(tuple(o for o in self.obstacles if o.kind not in kinds), self.frame)
-
 
 class Canopy:
     """A point cloud of the canopy (N, 3), m, in the arm's base frame: a coal octree of voxels of

@@ -27,10 +27,6 @@ class World:
             return self._checker if self.enabled else None
 
     @property
-    def scene(self):
-        return self._checker.scene
-
-    @property
     def canopy(self):
         return self._checker.canopy
 
