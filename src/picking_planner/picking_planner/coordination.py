@@ -141,7 +141,14 @@ class PlatformRun:
             # With arms running, the round is planned against their motion from when its parts can be
             # sent; with none, its clock starts once it is planned.
             ready = t_plan + 2.0 * self.planning * len(todo) if running else None
-            schedule = self._schedule(todo, idle, (ready or t_plan) + lead)
+            try:
+                schedule = self._schedule(todo, idle, (ready or t_plan) + lead)
+            except RuntimeError as exc:           # no schedule kept the arms apart: those apples stay on the tree
+                for i in todo:
+                    self._give_up(i, f'no schedule kept the arms apart ({exc})')
+                self.events.append(('WARN', f'round {self.rounds}: no schedule kept the arms apart ({exc}); '
+                                            f'{len(todo)} apples left on the tree'))
+                return
             self.planning = max((self.clock() - t_plan) / len(todo), 0.01)
             ready = self.clock() if ready is None else ready
             if self.clock() <= ready:

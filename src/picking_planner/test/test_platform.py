@@ -226,6 +226,22 @@ def test_an_arm_that_fails_gives_its_apples_back_and_the_other_arms_pick_them(tw
     assert run.picked() >= 6
 
 
+def test_a_round_no_schedule_keeps_apart_leaves_its_apples_on_the_tree_and_the_run_ends(two, monkeypatch):
+    c = Coordinator(two.platform, two.harvests, chunk=3)
+    tree = two.platform.tree(6, seed=1)
+    clock = [0.0]
+
+    def conflict(*args, **kwargs):
+        raise RuntimeError('arms still conflict after 1 decisions: 4.9 cm between arm1 and arm2')
+    monkeypatch.setattr(c, 'schedule', conflict)
+    run = PlatformRun(c, tree, lambda: clock[0])
+    fake = FakePlanners(run)
+    fake.t = clock
+    fake.until_done(limit=20.0)
+    assert run.finished() and run.picked() == 0 and len(run.skipped) == 6
+    assert any(level == 'WARN' and 'no schedule kept the arms apart' in w for level, w in run.events)
+
+
 def test_a_released_plan_that_comes_too_close_to_another_arms_stops_its_arm(close):
     c, tree = close
     clock = [0.0]

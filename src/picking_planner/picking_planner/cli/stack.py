@@ -245,9 +245,12 @@ class PlatformStack:
         if args is None:
             args = SHARED_RATES if len(self.platform.arms) > 1 else {}
         self.arms = []
+        # Each arm's scene: the ground and the platform (its own fruit box is not the single arm's).
+        scene = ['-p', f'scene_file:={Path(config or config_dir()) / "platform_arm_scene.yaml"}']
         for m in self.platform.arms:
             extra = {name: list(a) for name, a in args.items()}
-            extra['picking-planner'] = list(extra.get('picking-planner', []))
+            extra['picking-planner'] = list(extra.get('picking-planner', [])) + scene
+            extra['picking-sim'] = list(extra.get('picking-sim', [])) + scene
             for k, v in m.params.items():
                 extra['picking-planner'] += ['-p', f'{k}:={ros_value(v)}']
             self.arms.append(Stack(f'{self.ns.rstrip("/")}/{m.namespace}', log_dir, args=extra, config=config,
