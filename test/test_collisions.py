@@ -2,7 +2,8 @@
 latched ``scene`` topic puts a branch across the straight approach to an apple; the planner picks
 it from another direction and the simulator, as a witness, reports no contact; with collision
 checking off (the parameter service), the same pick hits the branch and the witness says so; a
-pose goal into the branch is refused naming it; a canopy cloud is taken from ``canopy_points``."""
+pose goal whose straight move crosses the branch goes around it; a pose goal into the branch is
+refused naming it; a canopy cloud is taken from ``canopy_points``."""
 
 import time
 
@@ -19,6 +20,7 @@ from picking_common.topics import BURST, LATCHED
 from picking_planner.collision import Scene
 from picking_planner.collision.scene import rod
 from picking_planner.harvest import synthetic_tree
+from picking_planner.platform import load_harvest
 from picking_planner.resources import config_dir
 from picking_planner.scene_msgs import cloud_message, scene_markers
 from rosstack import final_answer, make_pose, reach, running_stack
@@ -91,6 +93,29 @@ def test_a_pose_goal_into_the_branch_is_refused_naming_it(arm):
     answer = final_answer(client, mark)
     assert status_values(answer)['state'] == 'refused'
     assert 'would hit an obstacle' in answer.message and 'low branch' in answer.message, answer.message
+
+
+def test_a_pose_goal_whose_move_crosses_the_branch_goes_around_it(arm):
+    stack, client, contacts = arm
+    cycle = load_harvest().cycle
+    home = cycle.arm.fk(np.asarray(cycle.s.home_positions))
+    reach(client, lambda: client.send(client.pub_pose, pose_goal(home)))
+    seen = len(contacts)
+    # From home, tool down, to the other side of the branch: the straight joint move sweeps the wrist across it.
+    goal = np.eye(4)
+    goal[:3, :3] = Rotation.from_euler('x', 180.0, degrees=True).as_matrix()
+    goal[:3, 3] = [0.6, 0.4, 0.45]
+    answer = reach(client, lambda: client.send(client.pub_pose, pose_goal(goal)))
+    assert 'waypoints around obstacles' in status_values(answer).get('detours', ''), answer.message
+    time.sleep(0.5)
+    assert started(contacts, seen) == []
+
+
+def pose_goal(T):
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
+    return msg
 
 
 def shell_around(centre, seed, radius=0.12, n=3000):

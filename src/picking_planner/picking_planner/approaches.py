@@ -1,7 +1,9 @@
-"""Picking around branches: when the requested approach is blocked, other directions within a cone
-(pure core of the pick cycle's search).
+"""Picking around branches: when the requested approach is blocked, other IK branches, then other
+directions within a cone (pure core of the pick cycle's search).
 
-A blocked or unreachable approach is not a refused apple. The grasp axis (the tool's z, into the
+A blocked or unreachable approach is not a refused apple. The requested grasp is first tried on the
+arm's other IK branches (elbow, shoulder or wrist the other way: a line that would jump on one branch,
+or an elbow in a branch, may be clear on another). Then the grasp axis (the tool's z, into the
 apple) is tilted by up to ``approach_cone`` in every direction around it, and the gripper rolled
 about it; each candidate is first screened cheaply (its approach and lift lines by IK every
 centimetre, checked for collisions and joint jumps), and only the candidates that pass are planned
@@ -22,7 +24,7 @@ from .kinematics import Unreachable
 from .planning.joint_path import NoPath, rrt_connect
 
 #: The joint moves of the cycle that may go around an obstacle (pick_cycle.DETOURS).
-DETOURS = ('P1 approach', 'P4 above the box', 'P0 back home')
+DETOURS = ('P0 home', 'P1 approach', 'P4 above the box', 'P0 back home')
 #: rad: the tilts tried, in steps up to the cone.
 TILT_STEP = np.radians(15.0)
 #: Directions of tilt around the grasp axis.
@@ -45,15 +47,35 @@ class Blocked(Unreachable):
 
 @dataclass(frozen=True)
 class Approach:
-    """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad)."""
+    """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad);
+    ``branch``: the joints at P1 (the start of the line to the apple), None for the IK solution
+    nearest home."""
 
     pose: np.ndarray
     tilt: float
     roll: float
+    branch: np.ndarray | None = None
 
     def words(self):
+        if self.branch is not None:
+            return 'approached as requested on another IK branch of the arm'
         return (f'approached {np.degrees(self.tilt):.0f}° off the requested axis, rolled '
                 f'{np.degrees(self.roll):+.0f}°')
+
+
+def other_branches(cycle, approach):
+    """``approach`` reached on each other IK branch at its P1 within the joint limits (the one nearest
+    home is the default), the nearest home first."""
+    arm = cycle.arm
+    P1 = cycle.key_poses(approach.pose)['P1']
+    home = np.asarray(cycle.s.home_positions, float)
+    try:
+        default = arm.check_reachable(P1, seed=home)
+    except Unreachable:
+        return []
+    sols = [q for q in arm.ik_all(P1) if arm.within_limits(q) and np.abs(q - default).max() > 1e-6]
+    sols.sort(key=lambda q: float(np.abs(q - home).max()))
+    return [Approach(approach.pose, approach.tilt, approach.roll, q) for q in sols]
 
 
 def candidates(T, cone):
@@ -81,9 +103,9 @@ def _turned(T, tilt, azimuth, roll):
 
 
 def clear_cycle(cycle, plan_one, T_apple):
-    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T)`` plans the cycle for a
-    grasp pose; ``cycle`` (:class:`~picking_planner.pick_cycle.PickCycle`) gives the settings, the arm
-    and the checker. Raises :class:`Blocked` (or Unreachable) with the reason."""
+    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch)`` plans
+    the cycle for a grasp pose (``branch``: the joints at its P1, None for the default); ``cycle``
+    (:class:`~picking_planner.pick_cycle.PickCycle`) gives the settings, the arm and the checker. Raises :class:`Blocked` (or Unreachable) with the reason."""
     s, checker = cycle.s, cycle.checker
     allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
     requested = candidates(T_apple, 0.0)[0]
@@ -99,23 +121,33 @@ def clear_cycle(cycle, plan_one, T_apple):
             first = Blocked(f'the requested approach hits {contact}')
         except Unreachable as exc:
             first = exc
-    if s.approach_cone <= 0.0:
-        raise first
-    passed, blockers, _ = screen(cycle, candidates(T_apple, s.approach_cone)[1:], allowed)
-    for approach in passed[:MAX_CYCLES]:
-        try:
-            plan, contact = clear_plan(cycle, lambda detours=None, T=approach.pose: plan_one(T, detours), allowed)
-        except Unreachable:
-            continue
-        if contact is None:
-            plan.extra.update(approach=approach.words(), approach_tilt=approach.tilt, approach_roll=approach.roll)
-            return plan
-        blockers[contact.obstacle] += 1
-    cone = f'{np.degrees(s.approach_cone):.0f}°'
+    # The requested grasp on the arm's other IK branches, then (with a cone) other grasps.
+    blockers = Counter()
+    tries = [other_branches(cycle, requested)]
+    if s.approach_cone > 0.0:
+        tries.append(candidates(T_apple, s.approach_cone)[1:])
+    for approaches in tries:
+        passed, blocked_by, _ = screen(cycle, approaches, allowed)
+        blockers.update(blocked_by)
+        for approach in passed[:MAX_CYCLES]:
+            def make(detours=None, a=approach):
+                return plan_one(a.pose, detours, a.branch)
+            try:
+                plan, contact = clear_plan(cycle, make, allowed)
+            except Unreachable:
+                continue
+            if contact is None:
+                plan.extra.update(approach=approach.words(), approach_tilt=approach.tilt,
+                                  approach_roll=approach.roll)
+                return plan
+            blockers[contact.obstacle] += 1
+    within = f'within {np.degrees(s.approach_cone):.0f}°' if s.approach_cone > 0.0 else 'on any IK branch'
     if blockers:
         name, _ = blockers.most_common(1)[0]
-        raise Blocked(f'{name} blocks every approach within {cone} ({first})')
-    raise Unreachable(f'{first}; no other approach within {cone} reaches it either') from None
+        raise Blocked(f'{name} blocks every approach {within} ({first})')
+    if s.approach_cone <= 0.0:
+        raise first
+    raise Unreachable(f'{first}; no other approach {within} reaches it either') from None
 
 
 def clear_plan(cycle, make, allowed):
@@ -179,6 +211,9 @@ def screen(cycle, approaches, allowed):
     keys = [cycle.key_poses(a.pose) for a in approaches]
     P1, P2, P3 = (np.array([k[name] for k in keys]) for name in ('P1', 'P2', 'P3'))
     q1, ok1, _ = arm.ik_batch(P1, home)
+    for c, a in enumerate(approaches):
+        if a.branch is not None:
+            q1[c], ok1[c] = a.branch, True
     # Every candidate's lines are as long as the settings make them: the same number of points. The cycle's
     # lines keep the grasp's orientation (P1 and P3 are P2 moved back along the grasp axis and up).
     n1, n3 = (max(2, int(np.ceil(d / SCREEN_STEP - 1e-9)) + 1) for d in (cycle.s.approach_distance, cycle.s.lift_height))

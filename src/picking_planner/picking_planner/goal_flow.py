@@ -24,6 +24,7 @@ from rclpy.task import Future
 from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
+from . import around
 from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
 from .harvest import Harvest, HarvestGoal, HarvestRun
 from .collision import STEP as COLLISION_STEP, Allowed
@@ -68,7 +69,8 @@ class GoalFlow:
     def _plan_pose(self, pose_stamped, method=''):
         self._check_frame(pose_stamped.header)
         planner = self._planner_for(method, POSE_METHODS, 'method')
-        return lambda start, _: planner.plan_pose(start, msg_pose(pose_stamped.pose), method or None)
+        return lambda start, _: around.plan_pose(planner, self.world.checker, start, msg_pose(pose_stamped.pose),
+                                                 method or None)
 
     def _plan_path(self, pose_array, method=''):
         self._check_frame(pose_array.header)
@@ -76,7 +78,7 @@ class GoalFlow:
             raise ValueError('the path has no poses')
         planner = self._planner_for(method, PATH_METHODS, 'path_method')
         poses = [msg_pose(p) for p in pose_array.poses]
-        return lambda start, _: planner.plan_path(start, poses, method or None)
+        return lambda start, _: around.plan_path(planner, self.world.checker, start, poses, method or None)
 
     def _planner_for(self, method, methods, parameter):
         """The planner for a goal that names its own method (empty: the node's parameter). A method that

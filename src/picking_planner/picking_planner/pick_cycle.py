@@ -233,12 +233,14 @@ class PickCycle:
         obstacle.
         """
         return approaches.clear_cycle(
-            self, lambda T, detours=None: self._plan(start, T, gripper_start, from_box, home_after, detours), T_apple)
+            self, lambda T, detours=None, branch=None: self._plan(start, T, gripper_start, from_box, home_after,
+                                                                  detours, branch), T_apple)
 
-    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None):
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_planner.approaches.DETOURS`) to joint waypoints it passes through on its way
-        (a collision-free path around an obstacle)."""
+        (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
+        than the one nearest home)."""
         pl, s, arm = self.planner, self.s, self.arm
         detours = detours or {}
         start = pl.check_start(start)
@@ -259,6 +261,8 @@ class PickCycle:
                     raise Unreachable(f'{name} ({_LABELS[name]}): {exc}') from None
                 q[name] = None
             seed = q[name] if q[name] is not None else seed
+        if branch is not None:
+            q['P1'] = arm.check_joints(branch, 'branch')
         if s.place_yaw_free:
             poses, q['P4'], q['P5'] = self.quickest_place(poses, q['P3'], home)
         parts, cart = [], []
@@ -274,7 +278,9 @@ class PickCycle:
             stop, q_rest = pl.come_to_rest(start)
             if stop is not None:
                 add('brake', 'quintic', stop)
-            if np.abs(q_rest - home).max() > 1e-4:
+            if 'P0 home' in detours:
+                add('P0 home', s.transfer_method, self._detour([q_rest, *detours['P0 home'], home], None, None))
+            elif np.abs(q_rest - home).max() > 1e-4:
                 add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
         speeds = BLEND_SPEEDS if s.blend else (0.0,)
 

@@ -5,6 +5,7 @@ import dataclasses
 import coal
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from picking_planner import approaches
 from picking_planner.collision import Allowed, Canopy, CollisionChecker, Scene
@@ -177,7 +178,7 @@ def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
     T = apple()
     pick = PickCycle(cycle.planner, cycle.s)
 
-    def plan_one(pose, detours=None):
+    def plan_one(pose, detours=None, branch=None):
         if np.allclose(pose, T):
             raise Unreachable('path fails at t = 0.244 s: wrist_3_joint would jump 0.363 rad')
         return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours)
@@ -186,6 +187,25 @@ def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
     narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))
     with pytest.raises(Unreachable, match='would jump'):
         approaches.clear_cycle(narrow, plan_one, T)
+
+
+def test_a_line_that_would_jump_on_the_branch_nearest_home_is_planned_on_another_branch(cycle):
+    """The grasp is kept as requested: the line to the apple that needs a joint to jump on the IK
+    solution nearest home is continuous from another solution at its start."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat([-0.1539, -0.3374, 0.0834, 0.925]).as_matrix()
+    T[:3, 3] = [0.653, 0.193, 0.7]
+    start = (HOME, 0 * HOME, 0 * HOME)
+    narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))
+    with pytest.raises(Unreachable, match='would jump'):
+        narrow._plan(start, T, None, False, True)
+    plan = narrow.plan(start, T)
+    assert plan.extra['approach'] == 'approached as requested on another IK branch of the arm'
+    assert plan.extra['approach_tilt'] == 0.0 and plan.extra['approach_roll'] == 0.0
+    q_grasp = plan.trajectory.sample([plan.extra['grasp_start']])[0][0, :6]
+    np.testing.assert_allclose(cycle.arm.fk(q_grasp), T, atol=1e-4)
+    others = approaches.other_branches(narrow, approaches.candidates(T, 0.0)[0])
+    assert others and all(cycle.arm.within_limits(a.branch) for a in others)
 
 
 def test_the_candidates_stay_within_the_cone_and_start_with_the_requested_pose():
@@ -235,6 +255,23 @@ def test_a_wire_across_the_transfer_is_passed_on_a_joint_path_around_it(cycle, c
     around = PickCycle(cycle.planner, cycle.s, checker).plan(start, T)
     assert 'P4 above the box through' in around.extra['detours']
     assert checker.check(around.trajectory, Allowed(T[:3, 3], cycle.s.apple_region)) is None
+
+
+def test_a_pick_from_where_the_way_home_crosses_a_branch_goes_around_it(cycle, caps):
+    T = apple()
+    a = T[:3, 3]
+    checker = CollisionChecker(caps, Scene.from_dict(
+        {'branches': [branch('low branch', a + [-0.08, -0.4, -0.06], a + [-0.08, 0.4, -0.06])]}))
+    away = np.eye(4)
+    away[:3, :3] = Rotation.from_euler('x', 180.0, degrees=True).as_matrix()
+    away[:3, 3] = [0.6, 0.4, 0.45]                   # tool down beyond the branch: home is across it
+    q0 = cycle.arm.check_reachable(away, seed=HOME)
+    start, allowed = (q0, 0 * q0, 0 * q0), Allowed(a, cycle.s.apple_region)
+    plain = PickCycle(cycle.planner, cycle.s).plan(start, T)
+    assert approaches.check(checker, plain, allowed).part == 'P0 home'
+    plan = PickCycle(cycle.planner, cycle.s, checker).plan(start, T)
+    assert 'P0 home through' in plan.extra['detours']
+    assert checker.check(plan.trajectory, allowed) is None
 
 
 def test_a_joint_path_is_found_around_an_obstacle_and_shortcut():

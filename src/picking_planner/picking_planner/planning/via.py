@@ -25,13 +25,7 @@ class ViaMoves:
         parts = [('brake', 'quintic', stop)] if stop is not None else []
         cart = []
         if method in ('via_lspb', 'quintic_via', 'optimal'):
-            qs = [q]
-            for i, T in enumerate(poses):
-                try:
-                    qs.append(self.arm.check_reachable(T, seed=qs[-1]))
-                except Unreachable as exc:
-                    raise Unreachable(f'pose {i}: {exc}') from None
-            parts.append(('via points', method, self.via(np.array(qs), method)))
+            parts.append(('via points', method, self.via(self.via_points(q, poses), method)))
         elif method == 'line':
             T_prev = self.arm.fk(q)
             for i, T in enumerate(poses):
@@ -55,6 +49,17 @@ class ViaMoves:
             parts.append(('arc', 'arc', traj))
             cart.append((len(parts) - 1, path))
         return self.join(parts, method, cart)
+
+    def via_points(self, q, poses):
+        """The joints at rest ``q`` and at each of ``poses`` in turn, each solution nearest the one
+        before: shape (1 + len(poses), dof); Unreachable naming the first pose out of reach."""
+        qs = [q]
+        for i, T in enumerate(poses):
+            try:
+                qs.append(self.arm.check_reachable(T, seed=qs[-1]))
+            except Unreachable as exc:
+                raise Unreachable(f'pose {i}: {exc}') from None
+        return np.array(qs)
 
     def via(self, qs, method, start=None, end=None):
         """Joint via points timed from the limits, stretched until feasible.
