@@ -1,14 +1,14 @@
 """Picking around branches: when the requested approach is blocked, other IK branches, then other
 directions within a cone (pure core of the pick cycle's search).
 
-A blocked or unreachable approach is not a refused apple. The requested grasp is first tried on the
-arm's other IK branches (elbow, shoulder or wrist the other way: a line that would jump on one branch,
-or an elbow in a branch, may be clear on another). Then the grasp axis (the tool's z, into the
-apple) is tilted by up to ``approach_cone`` in every direction around it, and the gripper rolled
-about it; each candidate is first screened cheaply (its approach and lift lines by IK every
-centimetre, checked for collisions and joint jumps), and only the candidates that pass are planned
-as whole cycles and checked densely. The quickest clear cycle among the first few wins; an apple
-with none is refused with the obstacle that blocked most candidates.
+A blocked or unreachable approach is not a refused apple. The requested grasp is tried on the arm's
+other IK branches (elbow, shoulder or wrist the other way: a line that would jump on one branch, or an
+elbow in a branch, may be clear on another): first when it failed kinematically, last when it was
+blocked. The grasp axis (the tool's z, into the apple) is tilted by up to ``approach_cone`` in every
+direction around it, and the gripper rolled about it; each candidate is first screened cheaply (its
+approach and lift lines by IK every centimetre, checked for collisions and joint jumps), and only the
+candidates that pass are planned as whole cycles and checked densely. The quickest clear cycle among
+the first few wins; an apple with none is refused with the obstacle that blocked most candidates.
 """
 
 from __future__ import annotations
@@ -121,11 +121,13 @@ def clear_cycle(cycle, plan_one, T_apple):
             first = Blocked(f'the requested approach hits {contact}')
         except Unreachable as exc:
             first = exc
-    # The requested grasp on the arm's other IK branches, then (with a cone) other grasps.
+    # The requested grasp on the arm's other IK branches and (with a cone) other grasps: the branches first
+    # when the grasp failed kinematically (it is reachable as asked), else the cone's nearby grasps first
+    # (another branch swings the arm far round: a longer cycle).
     blockers = Counter()
     tries = [other_branches(cycle, requested)]
     if s.approach_cone > 0.0:
-        tries.append(candidates(T_apple, s.approach_cone)[1:])
+        tries.insert(len(tries) if not isinstance(first, Blocked) else 0, candidates(T_apple, s.approach_cone)[1:])
     for approaches in tries:
         passed, blocked_by, _ = screen(cycle, approaches, allowed)
         blockers.update(blocked_by)

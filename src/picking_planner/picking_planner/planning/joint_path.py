@@ -20,16 +20,21 @@ class NoPath(ValueError):
     """No collision-free path was found within the tries allowed."""
 
 
+def _edge(a, b):
+    """Samples of the straight joint-space segment ``a``-``b``, every EDGE_STEP rad of its largest joint change."""
+    n = max(2, int(np.ceil(np.abs(b - a).max() / EDGE_STEP)) + 1)
+    return a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+
+
 def clear_edge(colliding, a, b):
     """Whether the straight joint-space segment ``a``-``b`` is clear: ``colliding(q) -> (N,) bool``
     over samples every EDGE_STEP rad of its largest joint change."""
-    n = max(2, int(np.ceil(np.abs(b - a).max() / EDGE_STEP)) + 1)
-    return not colliding(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)).any()
+    return not colliding(_edge(a, b)).any()
 
 
-def rrt_connect(colliding, start, goal, lower, upper, rng=None, iterations=600, shortcuts=60):
+def rrt_connect(colliding, start, goal, lower, upper, rng=None, iterations=600):
     """Waypoints (M, dof) from ``start`` to ``goal`` (both included) whose straight segments are all
-    clear, within ``lower``..``upper`` (rad); NoPath after ``iterations`` extensions without one."""
+    clear, within ``lower``..``upper`` (rad), shortcut; NoPath after ``iterations`` extensions without one."""
     rng = np.random.default_rng(0) if rng is None else rng
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if colliding(np.array([start, goal])).any():
@@ -52,7 +57,7 @@ def rrt_connect(colliding, start, goal, lower, upper, rng=None, iterations=600, 
                 path = _trace(grow, new)[::-1] + _trace(other, reached)
                 if i % 2:                               # grown from the goal's tree: reverse
                     path = path[::-1]
-                return shortcut(colliding, np.array(path), rng, shortcuts)
+                return shortcut(colliding, np.array(path))
     raise NoPath(f'no collision-free joint path found in {iterations} extensions')
 
 
@@ -81,13 +86,20 @@ def _trace(tree, k):
     return out
 
 
-def shortcut(colliding, path, rng, tries):
-    """``path`` with waypoints dropped wherever the straight segment past them is clear."""
-    path = list(path)
-    for _ in range(tries):
-        if len(path) <= 2:
-            break
-        i, j = sorted(rng.choice(len(path), 2, replace=False))
-        if j - i > 1 and clear_edge(colliding, path[i], path[j]):
-            path = path[:i + 1] + path[j:]
-    return np.array(path)
+def shortcut(colliding, path):
+    """``path`` with waypoints dropped: from each waypoint kept, straight on to the farthest later one
+    whose segment is clear (every candidate segment checked in one call)."""
+    path = np.asarray(path, float)
+    kept = [0]
+    while kept[-1] < len(path) - 1:
+        i = kept[-1]
+        farther = list(range(i + 2, len(path)))
+        if not farther:
+            kept.append(i + 1)
+            continue
+        samples = [_edge(path[i], path[j]) for j in farther]
+        hit = colliding(np.concatenate(samples))
+        ends = np.cumsum([len(x) for x in samples])
+        clear = [j for j, a, b in zip(farther, ends - [len(x) for x in samples], ends) if not hit[a:b].any()]
+        kept.append(max(clear) if clear else i + 1)
+    return path[kept]
