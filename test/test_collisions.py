@@ -3,19 +3,20 @@ latched ``scene`` topic puts a branch across the straight approach to an apple; 
 it from another direction and the simulator, as a witness, reports no contact; with collision
 checking off (the parameter service), the same pick hits the branch and the witness says so; a
 pose goal whose straight move crosses the branch goes around it; a pose goal into the branch is
-refused naming it; a canopy cloud is taken from ``canopy_points``."""
+refused naming it; a canopy cloud is taken from ``canopy_points``, and one that comes while a pick or a
+harvest runs stops it where it would now touch."""
 
 import time
 
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseArray, PoseStamped
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-from picking_common.status import status_values
+from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST, LATCHED
 from picking_planner.collision import Scene
 from picking_planner.collision.scene import rod
@@ -169,6 +170,42 @@ def test_a_cloud_that_comes_while_the_arm_moves_stops_a_plan_it_puts_something_i
         assert status_values(answer)['state'] == 'aborted', answer.message
         assert 'stopped: the world changed while it ran' in answer.message and 'the canopy' in answer.message
         client.wait_for(lambda: arm_at_rest(client), 10.0, 'the arm at rest')
+    finally:
+        cleared = stack.planner.output().count('canopy cleared')
+        pub.publish(cloud_message(np.zeros((0, 3)), 'base_link'))
+        client.wait_for(lambda: stack.planner.output().count('canopy cleared') > cleared, 20.0, 'the canopy cleared')
+
+
+def test_a_cloud_that_comes_mid_harvest_stops_it_and_the_apples_in_the_box_are_reported(arm):
+    """A harvest is stopped as a pick is, when a new cloud lies on the rest of its plan: the apples
+    picked by then are reported, the one in hand as failed, nothing touched."""
+    stack, client, contacts = arm
+    apples = [T for T in synthetic_tree(12, seed=7) if np.linalg.norm(T[:3, 3] - A) > 0.25][:3]
+    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
+    harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
+    client.wait_for(lambda: pub.get_subscription_count() > 0 and harvest.get_subscription_count() > 0, 10.0,
+                    'the planner on canopy_points and harvest_targets')
+    tree = PoseArray(poses=[make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
+                            for T in apples])
+    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
+    key, seen = stamp_key(tree.header.stamp), len(contacts)
+    mark = client.mark()
+    client.send(harvest, tree)
+
+    def of_harvest(state=None, apple_state=None):
+        return [status_values(m) | {'message': m.message} for m in client.answers(mark)
+                if status_values(m).get('goal') == key and (state is None or status_values(m).get('state') == state)
+                and (apple_state is None or status_values(m).get('apple_state') == apple_state)]
+    first = client.wait_for(lambda: of_harvest(apple_state='picked'), 60.0, 'the first apple in the box')[0]
+    # The canopy closes round the two apples left (whichever the harvest's order takes next).
+    left = [T[:3, 3] for i, T in enumerate(apples) if i != int(first['apple'])]
+    pub.publish(cloud_message(np.vstack([shell_around(p, seed=6 + k) for k, p in enumerate(left)]), 'base_link'))
+    try:
+        end = client.wait_for(lambda: of_harvest('aborted'), 60.0, 'the harvest stopped')[0]
+        assert 'stopped: the world changed while it ran' in end['message'] and 'the canopy' in end['message'], end
+        assert 1 <= int(end['picked']) < 3 and first['apple'] in end['picked_apples'].split(), end
+        client.wait_for(lambda: arm_at_rest(client), 10.0, 'the arm at rest')
+        assert started(contacts, seen) == []
     finally:
         cleared = stack.planner.output().count('canopy cleared')
         pub.publish(cloud_message(np.zeros((0, 3)), 'base_link'))
