@@ -82,38 +82,37 @@ def candidates(T, cone):
     """The grasp poses to try for an apple at ``T`` (4x4): the requested one first, then every tilt
     (within ``cone``, rad), direction and roll, the least changed first."""
     T = np.asarray(T, float)
+    tilts = np.arange(TILT_STEP, cone + 1e-9, TILT_STEP) if cone > 0 else np.zeros(0)
+    # (tilt, azimuth, roll) of each candidate after the requested pose: its rolls, then each tilt's
+    # directions and rolls.
+    turns = [(0.0, 0.0, roll) for roll in ROLLS[1:]]
+    turns += [(tilt, 2 * np.pi * k / AZIMUTHS, roll) for tilt in tilts for roll in ROLLS for k in range(AZIMUTHS)]
     out = [Approach(T, 0.0, 0.0)]
-    tilts = np.arange(TILT_STEP, cone + 1e-9, TILT_STEP) if cone > 0 else []
-    for roll in ROLLS[1:]:
-        out.append(Approach(_turned(T, 0.0, 0.0, roll), 0.0, float(roll)))
-    for tilt in tilts:
-        for roll in ROLLS:
-            for k in range(AZIMUTHS):
-                out.append(Approach(_turned(T, tilt, 2 * np.pi * k / AZIMUTHS, roll), float(tilt), float(roll)))
-    return out
-
-
-def _turned(T, tilt, azimuth, roll):
-    """``T`` with its z axis tilted by ``tilt`` toward ``azimuth`` (in its own x-y plane), then rolled."""
-    axis = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0])          # tilting about it moves z toward azimuth
-    R = Rotation.from_rotvec(tilt * axis) * Rotation.from_rotvec([0.0, 0.0, roll])
-    out = T.copy()
-    out[:3, :3] = T[:3, :3] @ R.as_matrix()
+    if turns:
+        tilt, azimuth, roll = np.array(turns).T
+        # Tilting about the axis (-sin, cos, 0) of the grasp frame moves its z toward the azimuth; then the roll.
+        axis = np.stack([-np.sin(azimuth), np.cos(azimuth), np.zeros_like(azimuth)], axis=1)
+        R = (Rotation.from_rotvec(tilt[:, None] * axis)
+             * Rotation.from_rotvec(np.outer(roll, [0.0, 0.0, 1.0]))).as_matrix()
+        poses = np.repeat(T[None], len(turns), axis=0)
+        poses[:, :3, :3] = T[:3, :3] @ R
+        out += [Approach(P, float(t), float(r)) for P, t, r in zip(poses, tilt, roll)]
     return out
 
 
 def clear_cycle(cycle, plan_one, T_apple):
     """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch)`` plans
     the cycle for a grasp pose (``branch``: the joints at its P1, None for the default); ``cycle``
-    (:class:`~picking_planner.pick_cycle.PickCycle`) gives the settings, the arm and the checker. Raises :class:`Blocked` (or Unreachable) with the reason."""
+    (:class:`~picking_planner.pick_cycle.PickCycle`) gives the settings, the arm and the checker.
+    Raises :class:`Blocked` (or Unreachable) with the reason."""
     s, checker = cycle.s, cycle.checker
     allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
     requested = candidates(T_apple, 0.0)[0]
-    # Screened first, with a checker: a requested approach whose lines hit something is not planned in full.
-    blocked = screen(cycle, [requested], allowed)[2] if checker is not None else {}
-    if blocked:
-        first = Blocked(f'the requested approach hits {blocked[0]}')
-    else:
+    # Screened first, with a checker: a requested approach whose lines hit something is not planned in full
+    # (and what it hits is looked up only for a refusal's words).
+    hit = screen(cycle, [requested], allowed)[1] if checker is not None else []
+    first = None                                  # why the requested approach failed, unless it hit something
+    if not hit:
         try:
             plan, contact = clear_plan(cycle, lambda detours=None: plan_one(T_apple, detours), allowed)
             if contact is None:
@@ -124,13 +123,14 @@ def clear_cycle(cycle, plan_one, T_apple):
     # The requested grasp on the arm's other IK branches and (with a cone) other grasps: the branches first
     # when the grasp failed kinematically (it is reachable as asked), else the cone's nearby grasps first
     # (another branch swings the arm far round: a longer cycle).
-    blockers = Counter()
+    blockers, screened_out = Counter(), []
     tries = [other_branches(cycle, requested)]
     if s.approach_cone > 0.0:
-        tries.insert(len(tries) if not isinstance(first, Blocked) else 0, candidates(T_apple, s.approach_cone)[1:])
+        kinematic = first is not None and not isinstance(first, Blocked)
+        tries.insert(len(tries) if kinematic else 0, candidates(T_apple, s.approach_cone)[1:])
     for approaches in tries:
-        passed, blocked_by, _ = screen(cycle, approaches, allowed)
-        blockers.update(blocked_by)
+        passed, blocked = screen(cycle, approaches, allowed)
+        screened_out += blocked
         for approach in passed[:MAX_CYCLES]:
             def make(detours=None, a=approach):
                 return plan_one(a.pose, detours, a.branch)
@@ -144,6 +144,10 @@ def clear_cycle(cycle, plan_one, T_apple):
                 return plan
             blockers[contact.obstacle] += 1
     within = f'within {np.degrees(s.approach_cone):.0f}°' if s.approach_cone > 0.0 else 'on any IK branch'
+    if first is None:
+        contact = _named(checker, hit, allowed)[1]
+        first = Blocked(f'the requested approach hits {contact}' if contact else 'the requested approach is blocked')
+    blockers.update(_named(checker, screened_out, allowed)[0])
     if blockers:
         name, _ = blockers.most_common(1)[0]
         raise Blocked(f'{name} blocks every approach {within} ({first})')
@@ -201,14 +205,14 @@ class PartContact:
 
 
 def screen(cycle, approaches, allowed):
-    """``(passed, blockers, contacts)``: the approaches whose approach and lift lines are reachable
-    every SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's
-    travel from home to P1 and from P3 back, at full speed); a Counter of the obstacles that blocked
-    the others (the first NAMED of them), and those candidates' first contacts by index. All
-    candidates at once: one batched IK, one collision check."""
+    """``(passed, blocked)``: the approaches whose approach and lift lines are reachable every
+    SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's travel
+    from home to P1 and from P3 back, at full speed); and the joints along the lines of those that
+    only a collision stopped (for :func:`_named`), one (n, dof) array each. All candidates at once:
+    one batched IK, one collision check."""
     arm, checker = cycle.arm, cycle.checker
     if not approaches:
-        return [], Counter(), {}
+        return [], []
     home = np.asarray(cycle.s.home_positions, float)
     keys = [cycle.key_poses(a.pose) for a in approaches]
     P1, P2, P3 = (np.array([k[name] for k in keys]) for name in ('P1', 'P2', 'P3'))
@@ -231,17 +235,26 @@ def screen(cycle, approaches, allowed):
     good = ok.all(axis=1)
     with np.errstate(invalid='ignore'):
         good &= np.nan_to_num(np.abs(np.diff(q, axis=1)), nan=np.inf).max(axis=(1, 2)) <= SCREEN_JUMP
-    blockers, contacts = Counter(), {}
+    blocked = []
     if checker is not None and good.any():
         rows = np.nonzero(good)[0]
         hit = checker.colliding(q[rows].reshape(-1, q.shape[-1]), allowed).reshape(len(rows), n).any(axis=1)
         good[rows[hit]] = False
-        for c in rows[hit][:NAMED]:                 # what blocked them, for the words of a refusal
-            contact = checker.first_contact(q[c], allowed=allowed)
-            if contact is not None:
-                blockers[contact.obstacle] += 1
-                contacts[int(c)] = contact
+        blocked = [q[c] for c in rows[hit]]
     vmax = np.where(np.isfinite(arm.max_velocity), arm.max_velocity, 1.0)
     cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
     order = [c for c in np.argsort(cost, kind='stable') if good[c]]
-    return [approaches[c] for c in order], blockers, contacts
+    return [approaches[c] for c in order], blocked
+
+
+def _named(checker, blocked, allowed):
+    """``(blockers, first)``: a Counter of the obstacles that stopped the first NAMED of the ``blocked``
+    lines (joints along each, from :func:`screen`), and the first line's contact (None without any):
+    the words of a refusal, looked up only when one is made."""
+    blockers, first = Counter(), None
+    for q in blocked[:NAMED]:
+        contact = checker.first_contact(q, allowed=allowed)
+        if contact is not None:
+            blockers[contact.obstacle] += 1
+            first = contact if first is None else first
+    return blockers, first

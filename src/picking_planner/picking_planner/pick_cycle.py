@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from . import approaches, geometry, trajectory
 from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
+from .planning.remembered import Remembered
 from .resources import GRIPPER_OPEN, HOME_POSITIONS
 
 LIFT_METHODS = ('line', 'arc')
@@ -199,7 +200,8 @@ class PickCycle:
     :class:`~picking_planner.collision.CollisionChecker`, only cycles clear of its obstacles."""
 
     def __init__(self, planner, settings=PickSettings(), checker=None):
-        self.planner = planner
+        # Remembered: a cycle planned again (a detour, another approach, the next apple) reuses its moves.
+        self.planner = planner if isinstance(planner, Remembered) else Remembered(planner)
         self.arm = planner.arm
         self.s = settings
         self.checker = checker

@@ -221,16 +221,24 @@ class CollisionChecker:
         r = radius[None, :, None] + self.clearance
         lo, hi = seg.min(axis=2) - r, seg.max(axis=2) + r                 # (N, K, 3)
         found, sure = [], []
-        for i, o in enumerate(self.scene.obstacles):
-            n, k = np.nonzero(np.all((lo <= o.hi) & (hi >= o.lo), axis=-1))
+        if self.scene.obstacles:
+            o_lo, o_hi, o_ends, o_radius, o_branch = self.scene.arrays
+            # Every link's box against every obstacle's at once, as (sample, obstacle, link).
+            overlap = np.all((lo[:, None] <= o_hi[None, :, None]) & (hi[:, None] >= o_lo[None, :, None]), axis=-1)
+            n, i, k = np.nonzero(overlap)
             near = np.zeros(len(n), bool)
-            if o.ends is not None and len(n):
+            rods = np.nonzero(~np.isnan(o_ends[i, 0, 0]))[0]
+            if len(rods):
                 # A branch's capsule distance is the true one; a wire's (a cylinder) bounds it from below.
-                d = segment_distances(seg[n, k, 0], seg[n, k, 1], o.ends[0], o.ends[1]) - radius[k] - o.radius
-                keep = d < self.clearance
-                n, k, d = n[keep], k[keep], d[keep]
-                near = (d < self.clearance - 1e-9) if (decide and o.kind == 'branch') else np.zeros(len(n), bool)
-            found.append(np.stack([n, moving[k], np.full_like(n, i)], axis=1))
+                nr, ir, kr = n[rods], i[rods], k[rods]
+                d = (segment_distances(seg[nr, kr, 0], seg[nr, kr, 1], o_ends[ir, 0], o_ends[ir, 1])
+                     - radius[kr] - o_radius[ir])
+                keep = np.ones(len(n), bool)
+                keep[rods] = d < self.clearance
+                if decide:
+                    near[rods] = (d < self.clearance - 1e-9) & o_branch[ir]
+                n, i, k, near = n[keep], i[keep], k[keep], near[keep]
+            found.append(np.stack([n, moving[k], i], axis=1))
             sure.append(near)
         if self.canopy is not None:
             maybe, surely = self._near_canopy(seg, radius)

@@ -8,6 +8,8 @@ broad phase. The canopy is a coal octree of the cloud, with a distance field bes
 
 from __future__ import annotations
 
+import functools
+
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,6 +124,22 @@ class Scene:
 
     obstacles: tuple = ()
     frame: str = 'base_link'
+
+    @functools.cached_property
+    def arrays(self):
+        """The obstacles as arrays for a broad phase: ``(lo, hi, ends, radius, branch)``: their bounding
+        boxes (M, 3) each, the axis ends of the rods (M, 2, 3), NaN for others, their radii (M,) and
+        which are branches (M,) (a branch's capsule distance is exact, a wire's bounds it from below)."""
+        m = len(self.obstacles)
+        lo = np.array([o.lo for o in self.obstacles], float).reshape(m, 3)
+        hi = np.array([o.hi for o in self.obstacles], float).reshape(m, 3)
+        ends = np.full((m, 2, 3), np.nan)
+        for i, o in enumerate(self.obstacles):
+            if o.ends is not None:
+                ends[i] = o.ends
+        radius = np.array([o.radius for o in self.obstacles], float)
+        branch = np.array([o.kind == 'branch' for o in self.obstacles], bool)
+        return lo, hi, ends, radius, branch
 
     @classmethod
     def from_dict(cls, d, where='scene'):
