@@ -91,38 +91,45 @@ def checks():
     return rows
 
 
-def blocked_apples(harvest):
-    """The planning time of apples whose straight approach a twig blocks and which a cone approach frees."""
+def blocked_apples(harvest, repeats=3):
+    """The planning time of apples whose straight approach a twig blocks and which a cone approach frees,
+    beside an apple's usual time; each planned as a pick goal is, by a PickCycle of its own (nothing
+    remembered from another apple), ``repeats`` times."""
     cycle = harvest.cycle
     capsules = ArmCapsules.from_arm(cycle.arm)
     z = np.zeros(cycle.arm.dof)
     start = (harvest.home, z, z)
     times, straight = [], []
+
+    planner = getattr(cycle.planner, 'planner', cycle.planner)        # the planner, not its memory
+
+    def timed(checker, T):
+        t0 = time.perf_counter()
+        plan = PickCycle(planner, cycle.s, checker).plan(start, T)
+        return time.perf_counter() - t0, plan
     for seed in SEEDS:
         orchard = orchard_tree(16, seed=seed)
         checker = CollisionChecker(capsules, orchard.scene, Canopy(orchard.cloud))
-        pick = PickCycle(cycle.planner, cycle.s, checker)
-        for i in orchard.blocked:
-            try:
-                t0 = time.perf_counter()
-                plan = pick.plan(start, orchard.apples[i])
-                took = time.perf_counter() - t0
-            except Unreachable:
-                continue
-            if 'approach' in plan.extra:
-                times.append(took)
-        for T in orchard.apples[:4]:                           # an apple's usual planning time beside it
-            t0 = time.perf_counter()
-            try:
-                pick.plan(start, T)
-            except Unreachable:
-                continue
-            straight.append(time.perf_counter() - t0)
+        for _ in range(repeats):
+            for i in orchard.blocked:
+                try:
+                    took, plan = timed(checker, orchard.apples[i])
+                except Unreachable:
+                    continue
+                if 'approach' in plan.extra:
+                    times.append(took)
+            for T in orchard.apples[:4]:                           # an apple's usual planning time beside it
+                try:
+                    took, plan = timed(checker, T)
+                except Unreachable:
+                    continue
+                if 'approach' not in plan.extra:
+                    straight.append(took)
     if not times:
         return ['9', 'a blocked apple planned around its twig', '—', 'no blocked apple with a free approach found',
                 '≤ 50 ms', '—']
     m = median(times)
     return ['9', 'a blocked apple planned around its twig (the whole cycle, the blocked attempt included)',
-            fmt_time(m), f'median of {len(times)} blocked apples of {len(SEEDS)} orchard trees; an unblocked '
-            f'apple\'s cycle: {fmt_time(median(straight))} (median of {len(straight)})', '≤ 50 ms',
+            fmt_time(m), f'median of {len(times)} plans of the blocked apples of {len(SEEDS)} orchard trees; an '
+            f'unblocked apple\'s cycle: {fmt_time(median(straight))} (median of {len(straight)})', '≤ 50 ms',
             'met' if m <= 0.05 else 'missed']
