@@ -180,7 +180,8 @@ def clear_plan(cycle, make, allowed):
         plan = make(detours)
         contact = check(checker, plan, allowed)
     if contact is None and detours:
-        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoints' for label, w in detours.items())
+        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoint{"s" * (len(w) != 1)}'
+                                          for label, w in detours.items())
     return plan, contact
 
 

@@ -91,7 +91,8 @@ def _around(planner, checker, stop, tries, method, label, contact):
             plan = planner.join(parts, method)
             left = checker.check(plan.trajectory)
             if left is None:
-                plan.extra['detours'] = f'{label} through {waypoints} waypoints around obstacles'
+                plan.extra['detours'] = (f'{label} around obstacles through {waypoints} '
+                                             f'waypoint{"s" * (waypoints != 1)}')
                 return plan
             points = _doubled(points)
         why = f'the timed way around still touches: {left}'

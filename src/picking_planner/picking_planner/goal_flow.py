@@ -410,7 +410,7 @@ class GoalFlow:
         flight.handle = handle
         if flight.cancel:
             handle.cancel_goal_async()
-        around = f", {flight.extra['approach']}" if 'approach' in flight.extra else ''
+        around = ''.join(f', {flight.extra[k]}' for k in ('approach', 'detours') if k in flight.extra)
         self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s{around}")
         handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
 

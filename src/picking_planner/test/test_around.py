@@ -53,7 +53,7 @@ def test_a_pose_goal_across_a_wire_goes_around_it_to_the_same_pose(planner, caps
     assert checker.check(plain.trajectory) is not None
     plan = around.plan_pose(planner, checker, START, T, method)
     assert checker.check(plan.trajectory) is None
-    assert 'waypoints around obstacles' in plan.extra['detours']
+    assert 'around obstacles through' in plan.extra['detours']
     q_end = plan.trajectory.end_state()[0]
     np.testing.assert_allclose(planner.arm.fk(q_end), T, atol=1e-6)
     # Within the limits, and the clear goal is planned as before.
