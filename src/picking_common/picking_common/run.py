@@ -93,22 +93,25 @@ def run_node(make_node, args=None, help=None):
     return 0
 
 
-#: s of discovery before a node looks for another of its name.
+#: s between a node's looks for another of its name (the first once discovery has had this long).
 NAME_CHECK = 2.0
 
 
 def _warn_if_named_twice(node):
-    """Once discovery has had time: an ERROR when another node of this name runs in this namespace
-    (both would answer every message; one of them should stop)."""
+    """An ERROR whenever another node of this name comes to run in this namespace (both would answer
+    every message; one of them should stop): looked for every NAME_CHECK s, since discovery may take
+    longer on a busy host and the other may start later; said once for each new count."""
+    said = [1]
+
     def check():
-        timer.cancel()
         me = (node.get_name(), node.get_namespace())
         count = sum(1 for n in node.get_node_names_and_namespaces() if n == me)
-        if count > 1:
+        if count > 1 and count != said[0]:
             node.get_logger().error(f'{count} nodes named {node.get_fully_qualified_name()} run in this ROS domain: '
                                     'each answers every message (trajectories run twice, goals planned twice); '
                                     'stop all but one, or start this one in its own namespace (-r __ns:=/arm2)')
-    timer = node.create_timer(NAME_CHECK, check)
+        said[0] = max(count, 1)
+    node.create_timer(NAME_CHECK, check)
 
 
 class BackgroundSpin:
