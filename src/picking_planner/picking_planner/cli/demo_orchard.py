@@ -58,13 +58,18 @@ def run_orchard_scenario(config, out, demo):
     harvest_pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
     spinner = BackgroundSpin(node)
 
-    def wait(pred, timeout, what):
-        end = time.monotonic() + timeout
+    def wait(pred, timeout, what, publishing=None):
+        """Until ``pred()``; ``publishing = (publisher, msg)`` sent every 0.2 s meanwhile, as a camera
+        sends its clouds (the planner takes them best effort: any one may be dropped)."""
+        end, sent = time.monotonic() + timeout, -1.0
         while not pred():
             if time.monotonic() > end:
                 raise RuntimeError(f'timed out waiting for {what}')
             if not all(stack.alive().values()):
                 raise RuntimeError(f'a node exited while waiting for {what}')
+            if publishing is not None and time.monotonic() - sent >= 0.2:
+                publishing[0].publish(publishing[1])
+                sent = time.monotonic()
             time.sleep(0.05)
 
     def harvest(label):
@@ -102,9 +107,9 @@ def run_orchard_scenario(config, out, demo):
         wait(lambda: scene_pub.get_subscription_count() >= 2 and cloud_pub.get_subscription_count() >= 1, 20.0,
              'the planner and the simulator on scene and canopy_points')
         scene_pub.publish(scene_markers(orchard.scene, 'base_link'))
-        cloud_pub.publish(cloud_message(orchard.cloud, 'base_link'))
         wait(lambda: 'canopy from canopy_points' in stack.planner.output() and 'scene replaced' in
-             stack.planner.output() and 'from the scene topic' in stack.sim.output(), 20.0, 'the scene and the cloud')
+             stack.planner.output() and 'from the scene topic' in stack.sim.output(), 20.0, 'the scene and the cloud',
+             (cloud_pub, cloud_message(orchard.cloud, 'base_link')))
         runs['branch-aware'] = harvest('branch-aware')
         client = AsyncParameterClient(node, 'picking_planner')
         client.wait_for_services(timeout_sec=10.0)
