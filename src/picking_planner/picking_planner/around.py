@@ -71,8 +71,9 @@ def _around(planner, checker, stop, tries, method, label, contact):
     legs around obstacles, timed by ``method`` after the ``stop`` (None at rest)."""
     arm = planner.arm
     colliding = checker.colliding
-    if stop is not None and checker.check(stop) is not None:
-        raise Blocked(f'the plan would hit an obstacle while it brakes: {checker.check(stop)}')
+    braking = None if stop is None else checker.check(stop)
+    if braking is not None:
+        raise Blocked(f'the plan would hit an obstacle while it brakes: {braking}')
     why = 'no collision-free joint path around it'
     for qs in tries:
         points = [qs[0]]
@@ -91,8 +92,8 @@ def _around(planner, checker, stop, tries, method, label, contact):
             plan = planner.join(parts, method)
             left = checker.check(plan.trajectory)
             if left is None:
-                plan.extra['detours'] = (f'{label} around obstacles through {waypoints} '
-                                             f'waypoint{"s" * (waypoints != 1)}')
+                plural = 's' * (waypoints != 1)
+                plan.extra['detours'] = f'{label} around obstacles through {waypoints} waypoint{plural}'
                 return plan
             points = _doubled(points)
         why = f'the timed way around still touches: {left}'
