@@ -251,6 +251,21 @@ def test_an_extrapolated_start_is_held_within_the_limits_and_every_method_plans_
         _within_limits(arm, plan)
 
 
+def test_an_extrapolated_start_racing_toward_a_near_limit_is_held_to_a_speed_that_can_stop(arm, planner):
+    """Found by a CI run (a controller stopped by SIGSTOP, its reference extrapolated): the elbow 6 mrad
+    below its limit moving up at 0.7 rad/s could not stop before it, and the goal was refused."""
+    from picking_planner.planning import feasible_start
+    q, qd, qdd = HOME.copy(), np.zeros(6), np.zeros(6)
+    q[2], qd[2], qdd[2] = arm.upper[2] - 0.006, 0.705, 1.0
+    with pytest.raises(Unreachable, match='cannot stop before it'):
+        planner.plan_pose((q, qd, qdd), pose_matrix([0.55, 0.05, 0.45], DOWN), method='quintic')
+    q1, qd1, qdd1 = feasible_start(arm, q, qd, qdd)
+    assert 0.0 < qd1[2] < 0.705 and qdd1[2] == 0.0 and qd1[2] ** 2 / arm.max_acceleration[2] <= 0.006 + 1e-12
+    goal = pose_matrix([0.55, 0.05, 0.45], DOWN)
+    for method in ('quintic', 'optimal', 'lspb'):
+        _within_limits(arm, planner.plan_pose((q1, qd1, qdd1), goal, method=method))
+
+
 def test_a_jerk_limited_line_with_the_optimal_progress_is_faster_and_keeps_every_limit(arm):
     start = (HOME, Z, Z)
     goal = pose_matrix([0.55, 0.05, 0.35], DOWN)

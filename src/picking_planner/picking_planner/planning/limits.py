@@ -34,8 +34,9 @@ def feasible_start(arm, q, qd, qdd):
 
     Carried on too far, a constant acceleration crosses a limit; no plan can start from
     such a state and keep the limits. A joint at a position limit stops there; one at
-    its velocity limit stops accelerating beyond it; accelerations are clipped. (The
-    controller's lead-in absorbs the small difference from its real reference.)
+    its velocity limit stops accelerating beyond it; one near a position limit moves
+    toward it no faster than it can stop; accelerations are clipped. (The controller's
+    lead-in absorbs the small difference from its real reference.)
     """
     vmax = arm.max_velocity
     q1, qd1, qdd1 = trajectory.held_within_limits(q, qd, qdd, arm.lower, arm.upper, vmax, arm.max_acceleration)
@@ -44,6 +45,14 @@ def feasible_start(arm, q, qd, qdd):
     room = np.sqrt(2.0 * _full_jerk(arm) * np.maximum(vmax - np.abs(qd1), 0.0))
     speeding_up = qdd1 * qd1 > 0
     qdd1 = np.where(speeding_up, np.clip(qdd1, -room, room), qdd1)
+    # Near a position limit, moving toward it: no faster than a brake at the acceleration limit can
+    # stop before it (the planner's quintic brake travels qd^2 / a), and not speeding up toward it.
+    amax = np.where(np.isfinite(arm.max_acceleration), arm.max_acceleration, 10.0)
+    left = np.maximum(np.where(qd1 > 0, arm.upper - q1, q1 - arm.lower), 0.0)
+    stoppable = np.sqrt(left * amax)
+    too_fast = np.abs(qd1) > stoppable
+    qdd1 = np.where(too_fast & (qdd1 * qd1 > 0), 0.0, qdd1)
+    qd1 = np.where(too_fast, np.sign(qd1) * stoppable, qd1)
     return q1, qd1, qdd1
 
 
