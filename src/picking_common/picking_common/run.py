@@ -93,25 +93,27 @@ def run_node(make_node, args=None, help=None):
     return 0
 
 
-#: s between a node's looks for another of its name (the first once discovery has had this long).
-NAME_CHECK = 2.0
+#: s between a node's looks for another of its name, and how many it takes (discovery may be slow on a
+#: busy host); then its timer is gone.
+NAME_CHECK, NAME_CHECKS = 2.0, 5
 
 
 def _warn_if_named_twice(node):
-    """An ERROR whenever another node of this name comes to run in this namespace (both would answer
-    every message; one of them should stop): looked for every NAME_CHECK s, since discovery may take
-    longer on a busy host and the other may start later; said once for each new count."""
-    said = [1]
+    """An ERROR when another node of this name runs in this namespace (both would answer every
+    message; one of them should stop): looked for every NAME_CHECK s, NAME_CHECKS times, until found."""
+    looks = [0]
 
     def check():
+        looks[0] += 1
         me = (node.get_name(), node.get_namespace())
         count = sum(1 for n in node.get_node_names_and_namespaces() if n == me)
-        if count > 1 and count != said[0]:
+        if count > 1:
             node.get_logger().error(f'{count} nodes named {node.get_fully_qualified_name()} run in this ROS domain: '
                                     'each answers every message (trajectories run twice, goals planned twice); '
                                     'stop all but one, or start this one in its own namespace (-r __ns:=/arm2)')
-        said[0] = max(count, 1)
-    node.create_timer(NAME_CHECK, check)
+        if count > 1 or looks[0] >= NAME_CHECKS:
+            timer.cancel()
+    timer = node.create_timer(NAME_CHECK, check)
 
 
 class BackgroundSpin:
