@@ -410,8 +410,8 @@ class GoalFlow:
         flight.handle = handle
         if flight.cancel:
             handle.cancel_goal_async()
-        around = ''.join(f', {flight.extra[k]}' for k in ('approach', 'detours') if k in flight.extra)
-        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s{around}")
+        taken = ''.join(f', {flight.extra[k]}' for k in ('approach', 'detours') if k in flight.extra)
+        self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s{taken}")
         handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
 
     def _on_feedback(self, goal, msg):
