@@ -16,7 +16,8 @@ from .planning import PlannerSettings
 #: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
 #: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
 NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
-                     approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02)
+                     approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02,
+                     box_blend_radius=0.10)
 
 #: The parameters of the planning core (PlannerSettings) and of the pick cycle (PickSettings).
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
@@ -24,7 +25,7 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
         'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius',
-        'approach_cone', 'apple_region')
+        'box_blend_radius', 'approach_cone', 'apple_region')
 #: The world the plans keep clear of (collision.World).
 COLLISION = ('scene_file', 'avoid_collisions', 'collision_clearance')
 
@@ -73,8 +74,10 @@ _TEXT = {
     'gripper_closed': ('finger opening closed on an apple', 'm', (0.0, 1.0)),
     'blend': ('pass P1, P3 and P4 at speed (needs approach and transfer methods optimal and cartesian_profile '
               'optimal)', '', None),
-    'blend_radius': ('with blend: the joint moves meet the lines this far from P1, P3 and P4, rounding the corners '
-                     '(less than half of each line)', 'm', (0.0, 0.5)),
+    'blend_radius': ('with blend: the joint moves meet the lines this far from P1 and P3, rounding the corners '
+                     '(less than half of each line at the apple)', 'm', (0.0, 0.5)),
+    'box_blend_radius': ('with blend: the transfer meets the line into the box, and the rise out of it the next move, '
+                         'this far below P4 (less than box_drop_height)', 'm', (0.0, 2.0)),
     'approach_cone': ('when the requested approach to an apple is blocked or out of reach, other grasp axes are tried '
                       'this far from it (0: none)', 'rad', (0.0, 1.5708)),
     'apple_region': ('radius around an apple where touching is allowed (the apple and its stem)', 'm', (0.0, 0.5)),

@@ -9,7 +9,8 @@ box (a line down) -> release (a dwell while the gripper opens) -> back to P0
 (via-point LSPB up through P4).
 
 With ``blend`` the arm passes P1, P3 and P4 at speed instead of stopping there, and
-``blend_radius`` rounds those corners (see :class:`PickSettings`).
+``blend_radius`` (at the apple) and ``box_blend_radius`` (over the box) round those
+corners (see :class:`PickSettings`).
 
 The gripper is a joint of the plan (``gripper_joint``, the finger opening in m),
 so grasp and release reach every subscriber of ``joint_states`` with their times.
@@ -82,15 +83,21 @@ class PickSettings:
         ``cartesian_profile: optimal`` (jerk-limited: the joints' velocity and
         acceleration stay continuous through the blends).
     blend_radius : float
-        With ``blend``: the joint moves meet the lines this far from P1, P3 and P4, m
-        (0: at those points). The lines to the apple, up from it, into the box and out of
-        it are that much shorter, and each joint move rounds its corner: it rises the
-        rest of the way to P3 while the waist starts its turn, and finishes the turn
-        while it descends from P4 to where the line into the box begins. Less than half
-        of ``approach_distance``, ``lift_height`` and ``box_drop_height``, so that most
-        of every line stays straight (the apple is pulled straight off for at least half
-        the lift). How close the tool passes each corner and what the cycle gains are in
-        ``docs/benchmarks.md`` (row 7).
+        With ``blend``: the joint moves meet the lines this far from P1 and P3, m (0: at
+        those points). The lines to the apple and up from it are that much shorter, and
+        each joint move rounds its corner: the approach flows into the line to the apple,
+        and the transfer rises the rest of the way to P3 while the waist starts its turn.
+        Less than half of ``approach_distance`` and ``lift_height``, so that most of every
+        line at the apple stays straight (the apple is pulled straight off for at least
+        half the lift). How close the tool passes each corner and what the cycle gains are
+        in ``docs/benchmarks.md`` (row 7).
+    box_blend_radius : float
+        With ``blend``: the transfer meets the line into the box, and the rise out of the box
+        meets the next move, this far below P4, m (0: at P4). The line into the box is the
+        slow part of the place and the waist swings its limit all through the transfer: a
+        large radius (most of ``box_drop_height``) lowers the apple during the swing and
+        leaves the last centimetres above the drop point straight down. Less than
+        ``box_drop_height``; the rounded path is checked against the box like every other.
     approach_cone : float
         When the requested approach is blocked or out of reach, other grasp axes are tried
         this far from it, rad (0: only the requested one; see :mod:`picking_planner.approaches`).
@@ -115,6 +122,7 @@ class PickSettings:
     gripper_closed: float = 0.055
     blend: bool = False
     blend_radius: float = 0.0
+    box_blend_radius: float = 0.0
     approach_cone: float = float(np.radians(45.0))
     apple_region: float = 0.06
 
@@ -148,10 +156,15 @@ class PickSettings:
             if not self.blend:
                 raise ValueError('blend_radius needs blend: true (the joint moves meet the shortened lines at speed)')
             shortest = min(('approach_distance', self.approach_distance), ('lift_height', self.lift_height),
-                           ('box_drop_height', self.box_drop_height), key=lambda x: x[1])
+                           key=lambda x: x[1])
             if self.blend_radius >= 0.5 * shortest[1]:
                 raise ValueError(f'blend_radius {self.blend_radius} m must be less than half of every line: '
                                  f'{shortest[0]} is {shortest[1]} m')
+        if not (np.isfinite(self.box_blend_radius) and 0.0 <= self.box_blend_radius < self.box_drop_height):
+            raise ValueError(f'box_blend_radius must be >= 0 m and less than box_drop_height '
+                             f'({self.box_drop_height} m), got {self.box_blend_radius}')
+        if self.box_blend_radius > 0.0 and not self.blend:
+            raise ValueError('box_blend_radius needs blend: true (the joint moves meet the shortened lines at speed)')
         if not (np.isfinite(self.approach_cone) and 0.0 <= self.approach_cone <= np.pi / 2):
             raise ValueError(f'approach_cone must be in [0, pi/2] rad, got {self.approach_cone}')
         if not (np.isfinite(self.apple_region) and self.apple_region >= 0.0):
@@ -312,11 +325,12 @@ class PickCycle:
             return pl.via(np.array([q_lift, *through, q_box]), s.transfer_method,
                           blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
 
-        # With a blend radius the joint moves meet the lines that far from P1, P3 and P4: the
+        # With blend radii the joint moves meet the lines that far from P1, P3 and P4: the
         # lines are that much shorter, and the corners are rounded by the joint moves.
-        r = s.blend_radius
+        r, r_box = s.blend_radius, s.box_blend_radius
         q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
-        q4 = q['P4'] if r == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r, q['P4'])
+        q4 = q['P4'] if r_box == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r_box, q['P4'],
+                                                          'box_blend_radius')
         # P1: the approach ends where (and as fast as) the line to the apple starts.
         to_apple = lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest)  # noqa: E731
         if from_box:
@@ -401,14 +415,14 @@ class PickCycle:
 
     def _out_of_the_box(self, start):
         """``(q, q_top, rise_line)`` for a motion that starts at rest in the box: the joints there, at
-        the height of P4 (less the blend radius) straight above, and ``rise_line(f, rest)``, the line
+        the height of P4 (less ``box_blend_radius``) straight above, and ``rise_line(f, rest)``, the line
         up to there, left at speed fraction ``f``."""
         q, qd, qdd = (np.asarray(x, float) for x in self.planner.check_start(start))
         if np.abs(qd).max() > 1e-9 or np.abs(qdd).max() > 1e-9:
             raise ValueError('a cycle from the box starts at rest there (where the cycle before it ended)')
         T_box = self.arm.fk(q)
         T_top = T_box.copy()
-        T_top[2, 3] += self.s.box_drop_height - self.s.blend_radius
+        T_top[2, 3] += self.s.box_drop_height - self.s.box_blend_radius
         try:
             q_top = self.arm.check_reachable(T_top, seed=q)
         except Unreachable as exc:
@@ -472,13 +486,13 @@ class PickCycle:
         """The joints at the end of the whole lift (where the transfer would start without a blend radius)."""
         return self.arm.check_reachable(self._lift_poses(q_apple, poses)[2], seed=q_apple)
 
-    def _ik_toward(self, name, T_from, T_to, distance, seed):
+    def _ik_toward(self, name, T_from, T_to, distance, seed, setting='blend_radius'):
         """The joints where the tool is ``distance`` m from ``T_from`` (the knot point ``name``) on the
         line to ``T_to``; Unreachable naming the point and the blend radius."""
         try:
             return self.arm.check_reachable(_toward(T_from, T_to, distance), seed=seed)
         except Unreachable as exc:
-            raise Unreachable(f'{name} ({_LABELS[name]}) moved by blend_radius {distance} m along its line: '
+            raise Unreachable(f'{name} ({_LABELS[name]}) moved by {setting} {distance} m along its line: '
                               f'{exc}') from None
 
     def quickest_place(self, poses, q_lift, home):

@@ -28,16 +28,16 @@ def test_the_method_comparison_plans_each_cycle_with_its_own_profiles(arm, compa
     assert len(rows) == 5 and 'corners rounded' in next(reversed(rows))
     # Cubic approach segments step the acceleration (a jerk of thousands per 1 ms sample); quintics do not;
     # the jerk-limited cycles keep the arm's largest jerk limit, the one with rounded corners is quicker;
-    # LSPB is the quickest.
+    # LSPB is the quickest of the paper's profiles.
     assert cubic[2] > 10 * quintic[2]
     assert max(optimal[2], rounded[2]) <= arm.max_jerk.max() * (1 + 1e-6)
     assert rounded[0] < optimal[0] - 0.1
-    assert lspb[0] == min(r[0] for r in rows.values())
+    assert lspb[0] < min(cubic[0], quintic[0])
 
 
 def test_the_corners_figure_shows_the_tool_at_each_corner_through_and_rounded(arm, compared, tmp_path):
     from picking_planner.analysis import corner_path, pick_corners
-    from picking_planner.cli.demo_report import ROUNDED, THROUGH_CORNERS
+    from picking_planner.cli.demo_report import BOX_ROUND_RADIUS, ROUNDED, THROUGH_CORNERS
     from picking_planner.plots import plot_corners
 
     _, plans = compared
@@ -49,7 +49,8 @@ def test_the_corners_figure_shows_the_tool_at_each_corner_through_and_rounded(ar
     for name, point, direction in corners:
         assert np.linalg.norm(direction) == pytest.approx(1.0)
         through, rounded = (np.linalg.norm(tracks[k][name] - point, axis=1).min() for k in ('through', 'rounded'))
-        assert through < 1e-3 and 1e-5 < rounded < 0.005          # the rounded path passes near, not through
+        # The rounded path passes near, not through (over the box it descends during the swing).
+        assert through < 1e-3 and 1e-5 < rounded < (0.005 if name in ('P1', 'P3') else BOX_ROUND_RADIUS)
         past[name] = [float(((tracks[k][name] - point) @ direction).max()) for k in ('through', 'rounded')]
     assert past['P3'][1] < past['P3'][0] - 0.01        # leaving the lift early, the tool turns sooner past P3
     png = plot_corners(tmp_path / 'corners.png', corners, tracks, 'corners')

@@ -176,11 +176,12 @@ def test_table1_cycle_with_optimal_segments_keeps_the_jerk_limits(arm):
     assert not _jerk_ok(arm, paper)                        # the paper's LSPB segments do not keep them
 
 
-def _optimal_cycle(arm, blend, lift_method='line', blend_radius=0.0):
+def _optimal_cycle(arm, blend, lift_method='line', blend_radius=0.0, box_blend_radius=0.0):
     planner = Planner(arm, PlannerSettings(speed_scale=1.0, method='optimal', path_method='optimal',
                                            limit_jerk=True, cartesian_profile='optimal'))
     settings = PickSettings(approach_method='optimal', transfer_method='optimal', blend=blend,
-                            lift_method=lift_method, blend_radius=blend_radius).validate(arm)
+                            lift_method=lift_method, blend_radius=blend_radius,
+                            box_blend_radius=box_blend_radius).validate(arm)
     return PickCycle(planner, settings).plan((HOME, Z, Z), APPLE)
 
 
@@ -234,7 +235,7 @@ def _tool_ends(arm, plan, label):
 @pytest.mark.parametrize('lift_method', ['line', 'arc'])
 def test_a_blend_radius_shortens_each_line_at_its_corner_and_the_joint_moves_round_the_corners(arm, lift_method):
     r = 0.02
-    sharp, rounded = _optimal_cycle(arm, True, lift_method), _optimal_cycle(arm, True, lift_method, r)
+    sharp, rounded = _optimal_cycle(arm, True, lift_method), _optimal_cycle(arm, True, lift_method, r, r)
     assert rounded.duration < sharp.duration - 0.1
     assert _jerk_ok(arm, rounded)
     t = np.linspace(0.0, rounded.duration, 20_000)
@@ -259,12 +260,30 @@ def test_a_blend_radius_shortens_each_line_at_its_corner_and_the_joint_moves_rou
         assert np.linalg.norm(arm.fk(q)[:, :3, 3] - p_sharp[corner], axis=1).min() < 0.25 * r
 
 
+def test_the_box_blend_radius_lowers_the_apple_during_the_swing_and_ends_on_the_same_line(arm):
+    sharp, rounded = _optimal_cycle(arm, True, box_blend_radius=0.0), _optimal_cycle(arm, True, box_blend_radius=0.1)
+    assert rounded.duration < sharp.duration - 0.2
+    assert _jerk_ok(arm, rounded)
+    t = np.linspace(0.0, rounded.duration, 20_000)
+    check_joint_limits(arm, t, *rounded.trajectory.sample(t)[:3], names=list(rounded.joint_names))
+    # The lines at the apple are untouched; into and out of the box only the last 2 cm stay, straight down.
+    for label in ('P2 to the apple', 'P3 lift and detach'):
+        assert _tool_ends(arm, rounded, label) == pytest.approx(_tool_ends(arm, sharp, label), abs=1e-6)
+    for label, corner in (('P5 into the box', 0), ('P4 out of the box', 1)):
+        p_sharp, p_round = _tool_ends(arm, sharp, label), _tool_ends(arm, rounded, label)
+        assert p_round[1 - corner] == pytest.approx(p_sharp[1 - corner], abs=1e-6)
+        assert p_round[corner] - p_round[1 - corner] == pytest.approx([0.0, 0.0, 0.02], abs=1e-6)
+
+
 def test_a_blend_radius_needs_blend_and_must_leave_most_of_every_line_straight(arm):
     base = dict(approach_method='optimal', transfer_method='optimal', blend=True)
-    PickSettings(**base, blend_radius=0.029).validate(arm)
+    PickSettings(**base, blend_radius=0.029, box_blend_radius=0.119).validate(arm)
     for bad, match in ((dict(blend_radius=-0.01), 'blend_radius must be'), (dict(blend_radius=np.nan), 'finite'),
                        (dict(blend_radius=0.03), 'half of every line: lift_height'),
-                       (dict(blend_radius=0.02, blend=False), 'needs blend')):
+                       (dict(blend_radius=0.02, blend=False), 'needs blend'),
+                       (dict(box_blend_radius=0.12), 'less than box_drop_height'),
+                       (dict(box_blend_radius=-0.01), 'box_blend_radius must be'),
+                       (dict(box_blend_radius=0.05, blend=False), 'box_blend_radius needs blend')):
         with pytest.raises(ValueError, match=match):
             PickSettings(**{**base, **bad}).validate(arm)
 

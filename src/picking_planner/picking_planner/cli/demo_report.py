@@ -79,9 +79,10 @@ def _table(header, rows):
 
 #: compare_methods' labels of the jerk-limited cycle through its corners and with them rounded.
 THROUGH_CORNERS = 'optimal, jerk-limited, P1, P3, P4 passed at speed'
-#: m, the blend radius of the rounded cycle.
-ROUND_RADIUS = 0.02
-ROUNDED = f'the same, corners rounded (blend_radius {100 * ROUND_RADIUS:g} cm)'
+#: m, the blend radii of the rounded cycle (at the apple, over the box).
+ROUND_RADIUS, BOX_ROUND_RADIUS = 0.02, 0.10
+ROUNDED = (f'the same, corners rounded (blend_radius {100 * ROUND_RADIUS:g} cm, box_blend_radius '
+           f'{100 * BOX_ROUND_RADIUS:g} cm)')
 
 
 def compare_methods(arm, planner_params, apple_T):
@@ -97,7 +98,7 @@ def compare_methods(arm, planner_params, apple_T):
     rows, plans = [], {}
     jerk_limited = dict(method='optimal', path_method='optimal', limit_jerk=True, cartesian_profile='optimal')
     paper = dict(limit_jerk=False, cartesian_profile='quintic')
-    stops = dict(blend=False, blend_radius=0.0)
+    stops = dict(blend=False, blend_radius=0.0, box_blend_radius=0.0)
     for label, changes, pick_changes in (
             ('cubic (transfer quintic_via)', dict(method='cubic', **paper),
              dict(approach_method='cubic', transfer_method='quintic_via', **stops)),
@@ -106,9 +107,11 @@ def compare_methods(arm, planner_params, apple_T):
             ('lspb (transfer via_lspb)', dict(method='lspb', **paper),
              dict(approach_method='lspb', transfer_method='via_lspb', **stops)),
             (THROUGH_CORNERS, jerk_limited,
-             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.0)),
+             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.0,
+                  box_blend_radius=0.0)),
             (ROUNDED, jerk_limited,
-             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=ROUND_RADIUS))):
+             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=ROUND_RADIUS,
+                  box_blend_radius=BOX_ROUND_RADIUS))):
         planner = Planner(arm, PlannerSettings(**{**settings.__dict__, **changes}))
         plan = PickCycle(planner, PickSettings(**{**pick.__dict__, **pick_changes}).validate(arm)).plan(
             (home, z, z), apple_T)
@@ -233,11 +236,12 @@ def analyse_and_report(rec, events, config, out, quick=False):
                   '', 'Cubic segments start and stop with a step in acceleration (an infinite jerk, here the '
                   'acceleration change within one 1 ms sample); LSPB blends too; quintics keep acceleration '
                   'continuous. The paper\'s claim that parabolic transitions move smoothly is about velocity '
-                  'continuity: measured here, LSPB is the fastest for the same limits but not the smoothest. '
+                  'continuity: measured here, LSPB is the fastest of them for the same limits but not the smoothest. '
                   'The jerk-limited cycle (Ruckig\'s time-optimal segments within the jerk limits of '
                   '`config/picking_arm_joint_limits.yaml`, `blend: true`) keeps every jerk limit at a fraction '
-                  'of a second more; rounding its corners at P1, P3 and P4 (`blend_radius`) takes a quarter of '
-                  'a second off (`corners.png`: the tool at each corner, side on).']
+                  'of a second more; rounding its corners at P1 and P3 (`blend_radius`) and lowering the apple into the box during '
+                  'the swing (`box_blend_radius`) takes about half a second off (`corners.png`: the tool at each '
+                  'corner, side on).']
     if 'arc' in events:
         lines += arc_section(rec, events['arc'], arm, names)
     harvest_plot = None
@@ -269,14 +273,13 @@ def analyse_and_report(rec, events, config, out, quick=False):
     if compared:
         corners = pick_corners(arm, compared[THROUGH_CORNERS])
         tracks = {label: {name: corner_path(arm, compared[key], name) for name, _, _ in corners}
-                  for label, key in (('through the corners', THROUGH_CORNERS),
-                                                   (f'rounded, blend_radius {100 * ROUND_RADIUS:g} cm', ROUNDED))}
+                  for label, key in (('through the corners', THROUGH_CORNERS), ('rounded', ROUNDED))}
         files.append(plot_corners(out / 'corners.png', corners, tracks,
                                   'Jerk-limited cycle: the tool at its corners, through them and rounded',
                                   caption='Each panel: the tool within 5 cm of a corner of the cycle, side on. "Through '
                                           'the corners": blend, the joint moves meet the lines at P1, P3 and P4 at '
-                                          'speed; "rounded": they meet the lines blend_radius before. "P4 in" and "P4 out": '
-                                          'line into the box and the line out of it.'))
+                                          'speed; "rounded": they meet the lines blend_radius before (box_blend_radius '
+                                          'at P4). "P4 in" and "P4 out": the line into the box and the line out of it.'))
     if harvest_plot is not None:
         files.append(harvest_plot)
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
