@@ -252,12 +252,13 @@ def test_pick_cycle(arm, p, values):
 
 ROUNDED = st.fixed_dictionaries({'blend_radius': st.floats(0.0, 0.06), 'lift_height': st.floats(0.01, 0.12),
                                  'approach_distance': st.floats(0.01, 0.15), 'box_drop_height': st.floats(0.01, 0.2),
-                                 'lift_method': st.sampled_from(['line', 'arc'])})
+                                 'box_blend_radius': st.floats(0.0, 0.2), 'lift_method': st.sampled_from(['line', 'arc'])})
 
 
 @settings(max_examples=60)          # a blended cycle takes about 0.1 s to plan: 60 even in the long profile
 @given(st.floats(0.55, 0.8), st.one_of(ROUNDED, st.fixed_dictionaries({
-    'blend_radius': WILD, 'lift_height': WILD, 'approach_distance': WILD, 'box_drop_height': WILD})))
+    'blend_radius': WILD, 'lift_height': WILD, 'approach_distance': WILD, 'box_drop_height': WILD,
+    'box_blend_radius': WILD})))
 def test_blended_pick_cycle_with_rounded_corners(arm, x, values):
     try:
         settings_ = PickSettings(approach_method='optimal', transfer_method='optimal', blend=True,
