@@ -39,6 +39,9 @@ NAMED = 12
 SCREEN_STEP = 0.01
 #: rad: a joint moving further between two screened points breaks the line (another IK branch).
 SCREEN_JUMP = 0.3
+#: Candidates whose lines are checked for collisions at once, quickest first (a batch amortises the checker's
+#: numpy calls; stopping once enough have passed skips the rest).
+SCREEN_BATCH = 12
 
 
 class Blocked(Unreachable):
@@ -129,7 +132,7 @@ def clear_cycle(cycle, plan_one, T_apple):
         kinematic = first is not None and not isinstance(first, Blocked)
         tries.insert(len(tries) if kinematic else 0, candidates(T_apple, s.approach_cone)[1:])
     for approaches in tries:
-        passed, blocked = screen(cycle, approaches, allowed)
+        passed, blocked = screen(cycle, approaches, allowed, enough=MAX_CYCLES)
         screened_out += blocked
         for approach in passed[:MAX_CYCLES]:
             def make(detours=None, a=approach):
@@ -205,12 +208,13 @@ class PartContact:
         return f'{self.contact} ({self.part})' if self.part else str(self.contact)
 
 
-def screen(cycle, approaches, allowed):
+def screen(cycle, approaches, allowed, enough=None):
     """``(passed, blocked)``: the approaches whose approach and lift lines are reachable every
     SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's travel
     from home to P1 and from P3 back, at full speed); and the joints along the lines of those that
-    only a collision stopped (for :func:`_named`), one (n, dof) array each. All candidates at once:
-    one batched IK, one collision check."""
+    only a collision stopped (for :func:`_named`), one (n, dof) array each. All candidates' IK at
+    once; their collision checks a batch at a time, quickest first, until ``enough`` have passed
+    (None: all): only the first few passed are planned, so the rest need no check."""
     arm, checker = cycle.arm, cycle.checker
     if not approaches:
         return [], []
@@ -236,16 +240,21 @@ def screen(cycle, approaches, allowed):
     good = ok.all(axis=1)
     with np.errstate(invalid='ignore'):
         good &= np.nan_to_num(np.abs(np.diff(q, axis=1)), nan=np.inf).max(axis=(1, 2)) <= SCREEN_JUMP
-    blocked = []
-    if checker is not None and good.any():
-        rows = np.nonzero(good)[0]
-        hit = checker.colliding(q[rows].reshape(-1, q.shape[-1]), allowed).reshape(len(rows), n).any(axis=1)
-        good[rows[hit]] = False
-        blocked = [q[c] for c in rows[hit]]
     vmax = np.where(np.isfinite(arm.max_velocity), arm.max_velocity, 1.0)
-    cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
+    with np.errstate(invalid='ignore'):
+        cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
     order = [c for c in np.argsort(cost, kind='stable') if good[c]]
-    return [approaches[c] for c in order], blocked
+    if checker is None:
+        return [approaches[c] for c in order], []
+    passed, blocked = [], []
+    for first in range(0, len(order), SCREEN_BATCH):
+        rows = np.array(order[first:first + SCREEN_BATCH])
+        hit = checker.colliding(q[rows].reshape(-1, q.shape[-1]), allowed).reshape(len(rows), n).any(axis=1)
+        passed += [approaches[c] for c in rows[~hit]]
+        blocked += [q[c] for c in rows[hit]]
+        if enough is not None and len(passed) >= enough:
+            break
+    return passed, blocked
 
 
 def _named(checker, blocked, allowed):

@@ -377,9 +377,9 @@ def test_the_spline_through_samples_is_the_same_compiled_or_with_numpy(free, mon
 
 
 def test_joint_pieces_merged_compiled_are_those_merged_with_numpy(monkeypatch):
-    """LSPB moves, via-point LSPB and jerk-limited moves (each joint's pieces merged over the
-    union of their breaks): the compiled merge gives numpy's breaks and coefficients bit for bit
-    (the same synthetic division in the same order)."""
+    """LSPB moves, via-point LSPB and jerk-limited moves and stops (each joint's pieces merged over
+    the union of their breaks; a jerk-limited move then ends exactly on its target): the compiled
+    kernels give numpy's breaks and coefficients bit for bit (the same arithmetic in the same order)."""
     pytest.importorskip('numba')
     from picking_planner.trajectory import piecewise
     assert trajectory.use_compiled_kernels()
@@ -392,6 +392,10 @@ def test_joint_pieces_merged_compiled_are_those_merged_with_numpy(monkeypatch):
         makes.append(lambda p=points: trajectory.lspb(p[0], p[1], 1.5, 10.0))
         makes.append(lambda p=points: trajectory.time_optimal(p[0], p[1], np.full(p.shape[1], 2.0),
                                                               np.full(p.shape[1], 8.0), np.full(p.shape[1], 80.0)))
+        # Moving at the start (a blend), and a stop from a moving state (Ruckig's brake pre-phase where the
+        # start is beyond a limit).
+        makes.append(lambda p=points: trajectory.time_optimal(p[0], p[1], 2.0, 8.0, 80.0, v0=1.5 * p[1], a0=4.0 * p[0]))
+        makes.append(lambda p=points: trajectory.time_optimal_stop(p[0], 3.0 * p[1], 10.0 * p[0], 2.0, 8.0, 80.0))
     compiled = [make() for make in makes]
     monkeypatch.setattr(piecewise, '_kernels', None)
     for make, one in zip(makes, compiled):

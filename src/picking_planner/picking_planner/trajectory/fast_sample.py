@@ -25,10 +25,11 @@ tridiagonal solve and a quintic per segment), where numpy's LAPACK call and doze
 array expressions cost more than their arithmetic.
 
 :func:`scan_limits` (the joint-limit check of every planned move),
-:func:`merge_pieces` (each joint's LSPB or jerk-limited phases merged over the union
-of their breaks) and :func:`via_timing` (the blends of LSPB through via points, which
-the planner searches durations with) do in one pass what numpy does in a dozen or
-fifty small calls.
+:func:`merge_pieces` (each joint's LSPB phases merged over the union of their breaks),
+:func:`phase_pieces` and :func:`add_smoothstep` (a Ruckig move as one piecewise cubic,
+ending exactly on its target) and :func:`via_timing` (the blends of LSPB through via
+points, which the planner searches durations with) do in one pass what numpy does in a
+dozen or fifty small calls: a pick cycle times about eighty Ruckig moves.
 
 Imported by :mod:`.piecewise` when a segment is sampled at thousands of times, and
 for the rest only in a process that asked for them (a planner: see
@@ -340,3 +341,78 @@ def via_timing(points, td, a, tb, vel):
     if short:
         return 2, wk, wj, td[wk] - worst
     return 0, 0, 0, 0.0
+
+
+_PHASES = types.Array(types.float64, 3, 'C', readonly=True)
+_BREAKS_OUT = types.Array(types.float64, 1, 'C')
+PHASES = types.intp(_PHASES, _IN, types.float64, _BREAKS_OUT, _COEFFS)
+
+
+@njit(PHASES, cache=True, nogil=True, error_model='numpy')
+def phase_pieces(phases, end, duration, breaks, coeffs):
+    """Ruckig's per-joint phases as one piecewise cubic, for :func:`.optimal._pieces` (the same
+    arithmetic): ``phases`` (5, n, 9) holds each joint's nine phases (brake pre-phase, seven jerk
+    phases) as durations, start positions, velocities, accelerations and jerks; ``end`` (n,)
+    where each stops, held until ``duration``. Writes the union of the joints' boundaries into
+    ``breaks`` and each joint's cubic on each interval into ``coeffs`` (zeroed, K >= intervals);
+    returns the number of intervals K."""
+    n = phases.shape[1]
+    starts = np.empty((n, 11))
+    for j in range(n):
+        t = 0.0
+        starts[j, 0] = 0.0
+        for k in range(9):
+            t += phases[0, j, k]
+            starts[j, k + 1] = t
+        starts[j, 10] = max(t, duration)
+    flat = np.sort(starts.ravel())
+    last = flat[-1]
+    tol = 1e-12 * max(last - flat[0], 1.0)
+    m = 1
+    breaks[0] = flat[0]
+    for i in range(1, flat.size):
+        if flat[i] - flat[i - 1] > tol:
+            breaks[m] = flat[i]
+            m += 1
+    breaks[m - 1] = last
+    for k in range(m - 1):
+        start = breaks[k]
+        mid = 0.5 * (breaks[k] + breaks[k + 1])
+        for j in range(n):
+            piece = 0
+            for r in range(1, 10):
+                if mid >= starts[j, r]:
+                    piece = r
+            dt = start - starts[j, piece]
+            if piece == 9:
+                coeffs[k, 0, j] = end[j]
+                continue
+            p, v, a, jerk = phases[1, j, piece], phases[2, j, piece], phases[3, j, piece], phases[4, j, piece]
+            coeffs[k, 0, j] = p + dt * (v + dt * (0.5 * a + dt * jerk / 6.0))
+            coeffs[k, 1, j] = v + dt * (a + 0.5 * dt * jerk)
+            coeffs[k, 2, j] = 0.5 * (a + dt * jerk)
+            coeffs[k, 3, j] = jerk / 6.0
+    return m - 1
+
+
+SMOOTHSTEP = types.void(_IN, _COEFFS, _IN)
+
+
+@njit(SMOOTHSTEP, cache=True, nogil=True, error_model='numpy')
+def add_smoothstep(breaks, coeffs, error):
+    """``error * (10 x^3 - 15 x^4 + 6 x^5)``, x the time over the whole of ``breaks``, added to
+    each piece of ``coeffs`` (K, 6, n) about its own start, for :func:`.optimal._ending_at`."""
+    T = breaks[-1] - breaks[0]
+    T2 = T * T
+    T3, T4, T5 = T2 * T, T2 * T2, T2 * T2 * T
+    for k in range(coeffs.shape[0]):
+        x = (breaks[k] - breaks[0]) / T
+        x2 = x * x
+        for j in range(coeffs.shape[2]):
+            e = error[j]
+            coeffs[k, 0, j] += e * (x2 * x) * (10.0 - 15.0 * x + 6.0 * x2)
+            coeffs[k, 1, j] += e / T * x2 * (30.0 - 60.0 * x + 30.0 * x2)
+            coeffs[k, 2, j] += e / T2 * x * (30.0 - 90.0 * x + 60.0 * x2)
+            coeffs[k, 3, j] += e / T3 * (10.0 - 60.0 * x + 60.0 * x2)
+            coeffs[k, 4, j] += e / T4 * (-15.0 + 30.0 * x)
+            coeffs[k, 5, j] += e / T5 * 6.0

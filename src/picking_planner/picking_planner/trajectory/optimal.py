@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import as_joint_vector
-from .piecewise import PiecewisePolynomial, hold, merge_joint_pieces, taylor_shift
-from .polynomial import hermite_coeffs
+from .piecewise import PiecewisePolynomial, compiled_kernels, hold
 
 #: s a move to where the arm already is, at rest, lasts: a hold (a trajectory needs a duration).
 NO_MOVE = 0.01
@@ -84,16 +83,17 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
             raise ValueError(f'no jerk-limited move reaches the target within the limits (Ruckig: {result.name})')
         if traj.duration <= 0.0:                # already there, at rest: nothing to move
             return hold(qf, max(float(min_duration), NO_MOVE))
-        raw = _to_piecewise(traj, n)
+        breaks, coeffs = _pieces(traj, n)
         # _ending_at's correction jerks up to 60 e / T^3: on a move of a few ms, at the jerk limit
         # already, a few nanoradians of e went beyond it. Planned again with that much room left.
-        added = 60.0 * np.abs(qf - raw.end_state()[0]) / raw.duration ** 3
+        error = qf - _end_position(breaks, coeffs)
+        added = 60.0 * np.abs(error) / (breaks[-1] - breaks[0]) ** 3
         if np.all(used + added <= jmax * (1.0 + 1e-12)):
             break
         # (The error is rounding: it moves from joint to joint from one plan to the next; room on every joint.)
         used = np.minimum(used, jmax * max(1.0 - 2.0 * float(np.max(added / jmax)), 0.5))
         inp.max_jerk = used.tolist()
-    return _ending_at(raw, qf)
+    return PiecewisePolynomial(breaks, _ending_at(breaks, coeffs, error))
 
 
 def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
@@ -125,7 +125,7 @@ def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
         raise ValueError(f'no jerk-limited stop within the limits (Ruckig: {result.name})')
     if traj.duration <= 0.0:
         raise ValueError('already at rest: nothing to stop')
-    return _to_piecewise(traj, n)
+    return PiecewisePolynomial(*_pieces(traj, n))
 
 
 #: Relative tightenings of the limits tried when Ruckig fails on the limits as given.
@@ -160,46 +160,86 @@ def _calculate(ruckig, inp, traj):
         raise first
 
 
-def _ending_at(traj, qf):
-    """``traj`` moved onto the target position ``qf`` at its end, exactly.
+def _ending_at(breaks, coeffs, error):
+    """The pieces ``coeffs`` (K, 6, n) on ``breaks`` moved by ``error`` (n,) at their end, exactly.
 
     Ruckig meets a target position within its precision (up to about 1e-8 rad), while
     a move that the next one continues (a blend into a line, a via point) must end
     where that one starts (:func:`concatenate` checks 1e-9). The remainder is added
     as a smoothstep over the whole move, ``e (10 s^3 - 15 s^4 + 6 s^5)``: it leaves
     the start and both ends' velocities and accelerations as they are, and changes
-    velocities by at most ``1.875 e / T`` (of order 1e-8 rad/s).
+    velocities by at most ``1.875 e / T`` (of order 1e-8 rad/s). Each piece gets the
+    smoothstep's Taylor coefficients about its own start (its k-th derivative there over k!).
     """
-    error = qf - traj.end_state()[0]
     if not error.any():
-        return traj
-    # The quintic from 0 to the remainder, at rest at both ends, re-expanded about every break.
-    smoothstep = hermite_coeffs(0.0, 0.0, 0.0, error, 0.0, 0.0, traj.duration).T     # (6, n)
-    pieces = np.broadcast_to(smoothstep, (len(traj.breaks) - 1,) + smoothstep.shape)
-    local = taylor_shift(pieces, traj.breaks[:-1] - traj.breaks[0])
-    return PiecewisePolynomial(traj.breaks, traj.coeffs + local)
+        return coeffs
+    kernels = compiled_kernels()
+    if kernels is not None:
+        kernels.add_smoothstep(breaks, coeffs, error)        # the pieces are this move's own
+        return coeffs
+    T = breaks[-1] - breaks[0]
+    T2 = T * T
+    T3, T4, T5 = T2 * T, T2 * T2, T2 * T2 * T
+    x = ((breaks[:-1] - breaks[0]) / T)[:, None]                       # (K, 1)
+    x2 = x * x
+    e = error[None, :]
+    out = coeffs.copy()
+    out[:, 0] += e * (x2 * x) * (10.0 - 15.0 * x + 6.0 * x2)
+    out[:, 1] += e / T * x2 * (30.0 - 60.0 * x + 30.0 * x2)
+    out[:, 2] += e / T2 * x * (30.0 - 90.0 * x + 60.0 * x2)
+    out[:, 3] += e / T3 * (10.0 - 60.0 * x + 60.0 * x2)
+    out[:, 4] += e / T4 * (-15.0 + 30.0 * x)
+    out[:, 5] += e / T5 * 6.0
+    return out
 
 
-def _to_piecewise(traj, n):
-    """Ruckig's per-joint phases (brake pre-phase, seven jerk phases, a final hold) merged."""
+def _end_position(breaks, coeffs):
+    """Where the pieces end: the last cubic (Ruckig's phases are cubics) at the last break."""
+    h = breaks[-1] - breaks[-2]
+    c = coeffs[-1]
+    return c[0] + h * (c[1] + h * (c[2] + h * c[3]))
+
+
+def _pieces(traj, n):
+    """``(breaks, coeffs)`` of Ruckig's per-joint phases (brake pre-phase, seven jerk phases, a
+    final hold) on the union of every joint's phase boundaries.
+
+    Every phase is a cubic from its start state, so each joint's polynomial on each interval
+    of the union is its phase's state at the interval's start: no re-expansion needed.
+    """
     duration = traj.duration
-    pieces = 10
-    breaks = np.zeros((pieces + 1, n))
-    coeffs = np.zeros((pieces, 6, n))
-    for j, prof in enumerate(traj.profiles[0]):
-        phases = []
-        brake = prof.brake
-        for k in range(2):
-            phases.append((brake.t[k], brake.p[k], brake.v[k], brake.a[k], brake.j[k]))
-        for k in range(7):
-            phases.append((prof.t[k], prof.p[k], prof.v[k], prof.a[k], prof.j[k]))
-        t = 0.0
-        for k, (dt, p, v, a, jerk) in enumerate(phases):
-            breaks[k, j] = t
-            coeffs[k, :4, j] = (p, v, 0.5 * a, jerk / 6.0)
-            t += dt
-        # Hold the end from this joint's finish to the common end (zero width when synchronised).
-        breaks[9, j] = t
-        coeffs[9, 0, j] = prof.p[7]
-        breaks[10, j] = max(t, duration)
-    return PiecewisePolynomial(*merge_joint_pieces(breaks, coeffs))
+    profiles = traj.profiles[0]
+    # Per joint, the 9 phases' durations, start states (p, v, a) and jerks; then the hold at the end.
+    phases = np.array([[prof.brake.t + prof.t for prof in profiles], [prof.brake.p + prof.p[:7] for prof in profiles],
+                       [prof.brake.v + prof.v[:7] for prof in profiles],
+                       [prof.brake.a + prof.a[:7] for prof in profiles], [prof.brake.j + prof.j for prof in profiles]])
+    end = np.array([prof.p[7] for prof in profiles])
+    kernels = compiled_kernels()
+    if kernels is not None:
+        breaks, coeffs = np.empty(11 * n), np.zeros((11 * n, 6, n))
+        k = kernels.phase_pieces(phases, end, duration, breaks, coeffs)
+        return breaks[:k + 1].copy(), coeffs[:k].copy()
+    t, p, v, a, j = phases                                                              # (n, 9) each
+    starts = np.zeros((n, 11))
+    np.cumsum(t, axis=1, out=starts[:, 1:10])
+    # Hold the end from each joint's finish to the common end (zero width when synchronised).
+    starts[:, 10] = np.maximum(starts[:, 9], duration)
+    union = np.unique(starts)
+    span = union[-1] - union[0]
+    # Fold boundaries that differ only by rounding into one.
+    union = union[np.concatenate(([True], np.diff(union) > 1e-12 * max(span, 1.0)))]
+    union[-1] = starts[:, 10].max()
+    mids = 0.5 * (union[:-1] + union[1:])
+    # Each joint's phase on each interval (the last that starts before its middle), and the time into it.
+    piece = np.minimum((mids[:, None, None] >= starts[None, :, 1:10]).sum(axis=2), 9)   # (K, n)
+    cols = np.arange(n)[None, :]
+    dt = union[:-1, None] - starts[cols, piece]
+    zero = np.zeros((n, 1))
+    P, V, A, J = (np.concatenate([x, tail], axis=1)[cols, piece]
+                  for x, tail in ((p, end[:, None]), (v, zero), (a, zero), (j, zero)))
+    coeffs = np.zeros((len(mids), 6, n))
+    coeffs[:, 0] = P + dt * (V + dt * (0.5 * A + dt * J / 6.0))
+    coeffs[:, 1] = V + dt * (A + 0.5 * dt * J)
+    coeffs[:, 2] = 0.5 * (A + dt * J)
+    coeffs[:, 3] = J / 6.0
+    return union, coeffs
