@@ -11,9 +11,11 @@ concatenated and sent like every other profile here.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from ._checks import as_joint_vector
+from ._checks import MAX_MAGNITUDE, as_joint_vector
 from .piecewise import PiecewisePolynomial, compiled_kernels, hold
 
 #: s a move to where the arm already is, at rest, lasts: a hold (a trajectory needs a duration).
@@ -21,10 +23,28 @@ NO_MOVE = 0.01
 
 
 def _limits(value, n, name):
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ValueError(f'{name} must be finite and > 0 for every joint, got {arr.tolist()}')
-    return arr
+    """``(array, list)`` of a limit for ``n`` joints (a number holds for every joint), finite and > 0."""
+    arr = value if _is_vector(value, n) else np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    values = arr.tolist()
+    if not all(0.0 < x < math.inf for x in values):
+        raise ValueError(f'{name} must be finite and > 0 for every joint, got {values}')
+    return arr, values
+
+
+def _is_vector(x, n):
+    """Whether ``x`` is already what the checks make of a vector: n float64 values (the planner's moves)."""
+    return type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64
+
+
+def _state(x, name, n):
+    """A start or target state vector of ``n`` values as a list (None: zeros), checked as
+    :func:`as_joint_vector` checks it."""
+    if x is None:
+        return [0.0] * n
+    values = (x if _is_vector(x, n) else as_joint_vector(x, name, n)).tolist()
+    if not all(abs(v) <= MAX_MAGNITUDE for v in values):
+        as_joint_vector(x, name, n)                      # raises, naming the argument
+    return values
 
 
 def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=None, vf=None, af=None,
@@ -55,19 +75,18 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
     """
     from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-    q0 = as_joint_vector(q0, 'q0')
+    q0 = q0 if _is_vector(q0, np.size(q0)) else as_joint_vector(q0, 'q0')
     n = q0.size
-    qf = as_joint_vector(qf, 'qf', n)
-    states = [as_joint_vector(np.zeros(n) if x is None else x, name, n)
-              for x, name in ((v0, 'v0'), (a0, 'a0'), (vf, 'vf'), (af, 'af'))]
-    vmax = _limits(max_velocity, n, 'max_velocity')
-    amax = _limits(max_acceleration, n, 'max_acceleration')
-    jmax = _limits(max_jerk, n, 'max_jerk')
+    qf = qf if _is_vector(qf, n) else as_joint_vector(qf, 'qf', n)
+    q0_list, qf_list = _state(q0, 'q0', n), _state(qf, 'qf', n)
+    _, vmax = _limits(max_velocity, n, 'max_velocity')
+    _, amax = _limits(max_acceleration, n, 'max_acceleration')
+    jmax, jmax_list = _limits(max_jerk, n, 'max_jerk')
     inp = InputParameter(n)
-    inp.current_position, inp.target_position = q0.tolist(), qf.tolist()
-    inp.current_velocity, inp.current_acceleration = states[0].tolist(), states[1].tolist()
-    inp.target_velocity, inp.target_acceleration = states[2].tolist(), states[3].tolist()
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = vmax.tolist(), amax.tolist(), jmax.tolist()
+    inp.current_position, inp.target_position = q0_list, qf_list
+    inp.current_velocity, inp.current_acceleration = _state(v0, 'v0', n), _state(a0, 'a0', n)
+    inp.target_velocity, inp.target_acceleration = _state(vf, 'vf', n), _state(af, 'af', n)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = vmax, amax, jmax_list
     if not (np.isfinite(min_duration) and min_duration >= 0):
         raise ValueError(f'min_duration must be >= 0 s, got {min_duration}')
     if min_duration > 0:
@@ -113,9 +132,9 @@ def time_optimal_stop(q0, v0, a0, max_velocity, max_acceleration, max_jerk):
     inp.synchronization = Synchronization.No
     inp.current_position, inp.current_velocity, inp.current_acceleration = q0.tolist(), v0.tolist(), a0.tolist()
     inp.target_velocity, inp.target_acceleration = [0.0] * n, [0.0] * n
-    inp.max_velocity = _limits(max_velocity, n, 'max_velocity').tolist()
-    inp.max_acceleration = _limits(max_acceleration, n, 'max_acceleration').tolist()
-    inp.max_jerk = _limits(max_jerk, n, 'max_jerk').tolist()
+    inp.max_velocity = _limits(max_velocity, n, 'max_velocity')[1]
+    inp.max_acceleration = _limits(max_acceleration, n, 'max_acceleration')[1]
+    inp.max_jerk = _limits(max_jerk, n, 'max_jerk')[1]
     traj = Trajectory(n)
     try:
         result = _calculate(Ruckig(n), inp, traj)
