@@ -11,6 +11,10 @@ from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared
 from .goals import ErrorCode, Outcome
 from .sampler import from_points
 
+#: s: how well a trajectory's stamp places its first point in time (a float of the epoch's seconds
+#: resolves a quarter of a microsecond; the stamp and the point's time_from_start are each rounded).
+STAMP_RESOLUTION = 1e-6
+
 
 class Splicing:
     """The active trajectory, the one waiting for its splice time, and how a new one takes over."""
@@ -224,13 +228,23 @@ class Splicing:
 
     def _carries_on(self, now, rel, pos, vel, acc):
         """True when a trajectory's first point, due later than the shortest lead-in, is the state
-        (position, velocity and acceleration) the active trajectory's reference will have then."""
+        (position, velocity and acceleration) the active trajectory's reference will have then: at
+        an instant within STAMP_RESOLUTION of its time (a ROS stamp in float seconds of the epoch
+        knows it no better, and right after a break the reference's acceleration already moves at
+        the jerk of the phase that begins there)."""
         if vel is None or acc is None or rel[0] <= MIN_LEAD:
             return False
         t = now + float(rel[0])
-        _, _, ref_qdd = self._commanded(*self._reference_at(t, scheduled=False))
-        return (not self._starts_elsewhere(t, pos[0], vel[0])
-                and bool(np.abs(ref_qdd - acc[0]).max() <= 1e-6 * (1.0 + np.abs(acc[0]).max())))
+        states = [self._commanded(*self._reference_at(t + dt, scheduled=False))
+                  for dt in (-STAMP_RESOLUTION, 0.0, STAMP_RESOLUTION)]
+        for k, (x, tol) in enumerate(((pos[0], 1e-6), (vel[0], 1e-6),
+                                      (acc[0], 1e-6 * (1.0 + np.abs(acc[0]).max())))):
+            # Within how much the reference itself moves over that instant.
+            at = states[1][k]
+            spread = np.maximum(np.abs(states[0][k] - at), np.abs(states[2][k] - at))
+            if (np.abs(x - at) > tol + spread).any():
+                return False
+        return True
 
     def _check_lead_in(self, traj, lead, ref):
         """The lead-in from the reference to the first point must keep the acceleration limits too:

@@ -5,6 +5,8 @@ method, and never a limited command.
 The bound (docs/controller.md): within 1e-9 rad, 1e-7 rad/s and 1e-4 rad/s^2 of the plan.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -14,7 +16,7 @@ from picking_planner.kinematics import ArmModel, pose_matrix
 from picking_planner.pick_cycle import PickCycle, PickSettings
 from picking_planner.planning import PATH_METHODS, POSE_METHODS, Planner, PlannerSettings
 from picking_planner.resources import default_urdf
-from picking_planner.trajectory import waypoints
+from picking_planner.trajectory import concatenate, waypoints
 
 BOUND = (1e-9, 1e-7, 1e-4)
 ARM = ArmModel.from_urdf(default_urdf())
@@ -109,4 +111,27 @@ def test_a_plan_carrying_on_mid_motion_takes_over_exactly_where_it_begins():
     worst = run_and_compare(core, plans, 0.0, t_new - 0.15, rng)
     plans.append((t_new, second, send(core, second, t_new, now=t_new - 0.15, before=state[2])))
     worst = np.maximum(worst, run_and_compare(core, plans, t_new - 0.15, t_new + second.duration + 0.2, rng))
+    assert (worst <= BOUND).all(), worst
+
+
+def test_a_plan_stamped_a_fraction_of_a_microsecond_off_still_takes_over_exactly_where_it_begins():
+    """A harvest's next tree spliced where a release ends: the running plan rests there and its next move
+    starts at once at its jerk limit. The new plan's stamp (float seconds of the epoch) places its first
+    point a fraction of a microsecond off, where the reference's acceleration has already moved: it still
+    takes over there as planned, not through a lead-in from wherever the arm is when it arrives."""
+    planner = Planner(ARM, PlannerSettings(speed_scale=1.0, **JERK_LIMITED))
+    there = pose_matrix([0.6, 0.1, 0.4], DOWN)
+    move = planner.plan_pose((HOME, Z, Z), there)
+    rest = move.trajectory.end_state()[0]
+    onward = planner.plan_pose((rest, Z, Z), pose_matrix([0.55, -0.15, 0.45], DOWN))
+    first = SimpleNamespace(trajectory=concatenate([move.trajectory, onward.trajectory]), joint_names=None)
+    core = controller(HOME)
+    names = send(core, first, 0.1, now=0.0, before=Z)
+    t_new = 0.1 + move.duration
+    second = planner.plan_pose((rest, Z, Z), pose_matrix([0.65, 0.2, 0.5], DOWN))
+    rng = np.random.default_rng(2)
+    plans = [(0.1, first, names)]
+    worst = run_and_compare(core, plans, 0.0, t_new - 0.3, rng)        # sent while the arm still moves there
+    plans.append((t_new + 4e-7, second, send(core, second, t_new + 4e-7, now=t_new - 0.3, before=Z)))
+    worst = np.maximum(worst, run_and_compare(core, plans, t_new - 0.3, t_new + second.duration + 0.2, rng))
     assert (worst <= BOUND).all(), worst
