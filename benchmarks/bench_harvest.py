@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from harness import fmt_time, median
-from picking_planner.harvest import synthetic_tree
+from picking_planner.harvest import best_order, synthetic_tree
 from picking_planner.platform import Coordinator, Platform, load_harvest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,6 +51,11 @@ def planned(repeats=5):
     given = harvest.plan(start, shuffled, ordered=False)
     ordered = harvest.plan(start, shuffled)
     gain = 1.0 - ordered.plan.duration / given.plan.duration
+    # How far apart orders can be at all: the longest order the same search finds (its estimates negated).
+    reach_ok, _ = harvest.reach(shuffled)
+    longest = best_order(*(-c for c in harvest.order_costs(reach_ok, harvest.home)))
+    worst = harvest.plan(start, [reach_ok[k][1] for k in longest], ordered=False)
+    spread = 1.0 - ordered.plan.duration / worst.plan.duration
     rows = [['8', f'one arm, a dense tree ({APPLES} apples 8 cm apart, seed {SEED}), planned with the shipped settings',
              f'{rate:.0f} apples/h', f'{n} picked, {len(hp.skipped)} skipped; {hp.plan.duration / n:.2f} s an apple '
              f'(box included), {hp.plan.duration:.1f} s in all; planned in {plan_s:.2f} s', '≥ 900 apples/h',
@@ -59,9 +64,10 @@ def planned(repeats=5):
              fmt_time(median(order_times)), f'median of {repeats}', 'well under 1 s',
              'met' if median(order_times) < 0.5 else 'missed'],
             ['8', 'the planned order against the order given, on the same tree shuffled',
-             f'{100 * gain:.1f} % shorter', f'{ordered.plan.duration:.1f} s against {given.plan.duration:.1f} s '
-             '(every trip starts at the box: the order moves only the box-to-apple moves)', '≥ 10 %',
-             'met' if gain >= 0.10 else 'missed']]
+             f'{100 * gain:.1f} % shorter', f'{ordered.plan.duration:.1f} s against {given.plan.duration:.1f} s; the '
+             f'longest order found: {worst.plan.duration:.1f} s (the planned one {100 * spread:.1f} % shorter): every trip '
+             'is box, apple, box, so any two orders differ only in the first and last moves and the gripper\'s turns '
+             'over the box', '≥ 10 %', 'met' if gain >= 0.10 else 'missed']]
     for row in rows:
         print('  ' + ' | '.join(row), flush=True)
     return rows

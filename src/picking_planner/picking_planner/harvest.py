@@ -244,6 +244,14 @@ class Harvest:
         ``q_from`` and ending home: ``(ok reordered, estimated s in that order, in the given order)``."""
         if not ok:
             return [], 0.0, 0.0
+        first, between, last = self.order_costs(ok, q_from)
+        route = best_order(first, between, last)
+        return ([ok[k] for k in route], route_cost(route, first, between, last),
+                route_cost(range(len(ok)), first, between, last))
+
+    def order_costs(self, ok, q_from):
+        """``(first, between, last)``, the estimated moves an order is judged on (s): from ``q_from`` to each
+        apple's approach, from above the box after apple i to apple j's, and from above the box home."""
         q1 = np.array([a[2] for a in ok])
         q_top = np.array([a[3] for a in ok])
         times = self.cycle.planner.move_times
@@ -251,9 +259,7 @@ class Harvest:
         between = times(q_top, q1)
         np.fill_diagonal(between, 0.0)
         last = times(q_top, self.home[None])[:, 0]
-        route = best_order(first, between, last)
-        return ([ok[k] for k in route], route_cost(route, first, between, last),
-                route_cost(range(len(ok)), first, between, last))
+        return first, between, last
 
     def plan(self, start, apples, gripper_start=None, ordered=True, indices=None):
         """The harvest of ``apples`` (4x4 grasp poses in the base frame) from ``start = (q, qd, qdd)``;
