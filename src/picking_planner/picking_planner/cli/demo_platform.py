@@ -112,7 +112,8 @@ def run_platform_scenario(config, out, demo):
              f'layout `{layout}` of `config/platform.yaml`, the arms\' loops at the shared rates of `picking-stack '
              f'--platform`): **{v.get("picked")} of {v.get("apples")} picked** in {float(v.get("harvest_time", "nan")):.1f} s '
              f'from the first plan\'s start, **{total:.0f} apples an hour in all**'
-             + (f' ({total / one:.2f} times scenario 3\'s one arm)' if one else '') +
+             + (f' ({total / one:.2f} times scenario 3\'s one arm, which drops into its side box; these drop onto '
+                'the platform\'s conveyor in front of them)' if one else '') +
              f'; {float(v.get("closest_planned", "nan")) * 100:.1f} cm the closest approach between the arms as '
              f'planned, **{measured * 100:.1f} cm as measured** from their joint states (the clearance kept: '
              f'{coordinator.clearance * 100:.0f} cm). {wall:.0f} s from sending the tree, its planning included.', '',
