@@ -180,7 +180,8 @@ def _calculate(ruckig, inp, traj):
 
 
 def _ending_at(breaks, coeffs, error):
-    """The pieces ``coeffs`` (K, 6, n) on ``breaks`` moved by ``error`` (n,) at their end, exactly.
+    """The pieces ``coeffs`` (K, 6, n) on ``breaks`` moved by ``error`` (n,) at their end, exactly (in
+    place: they are the move's own, fresh from :func:`_pieces`).
 
     Ruckig meets a target position within its precision (up to about 1e-8 rad), while
     a move that the next one continues (a blend into a line, a via point) must end
@@ -194,7 +195,7 @@ def _ending_at(breaks, coeffs, error):
         return coeffs
     kernels = compiled_kernels()
     if kernels is not None:
-        kernels.add_smoothstep(breaks, coeffs, error)        # the pieces are this move's own
+        kernels.add_smoothstep(breaks, coeffs, error)
         return coeffs
     T = breaks[-1] - breaks[0]
     T2 = T * T
@@ -202,7 +203,7 @@ def _ending_at(breaks, coeffs, error):
     x = ((breaks[:-1] - breaks[0]) / T)[:, None]                       # (K, 1)
     x2 = x * x
     e = error[None, :]
-    out = coeffs.copy()
+    out = coeffs
     out[:, 0] += e * (x2 * x) * (10.0 - 15.0 * x + 6.0 * x2)
     out[:, 1] += e / T * x2 * (30.0 - 60.0 * x + 30.0 * x2)
     out[:, 2] += e / T2 * x * (30.0 - 90.0 * x + 60.0 * x2)
