@@ -319,9 +319,15 @@ def settles_at(client, target, tolerance=1e-3, timeout=5.0):
         - target) < tolerance, timeout, f'the tool within {tolerance * 1e3:g} mm of {list(target)}')
 
 
-def largest_step(client, since):
-    """Largest change of any arm joint between consecutive joint_states since ``since``."""
+def largest_step(client, since, period=0.01):
+    """Largest change of any arm joint between consecutive joint_states since ``since``, per
+    ``period`` of their stamps (rad per joint_states period): messages a loaded client missed
+    leave a gap of several periods, which is motion, not a jump."""
     with client.lock:
         msgs = [m for _, m in client.states[since['states']:]]
+    if len(msgs) < 2:
+        return 0.0
     q = np.array([[m.position[list(m.name).index(n)] for n in ARM_JOINTS] for m in msgs])
-    return np.abs(np.diff(q, axis=0)).max() if len(q) > 1 else 0.0
+    t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in msgs])
+    step = np.abs(np.diff(q, axis=0)).max(axis=1)
+    return float((step * period / np.maximum(np.diff(t), period)).max())

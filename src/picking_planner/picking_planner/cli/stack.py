@@ -116,6 +116,32 @@ def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
     return [p.reap(deadline) for p in processes]
 
 
+#: s without a joint_commands message before :meth:`Stack.wait_ready` subscribes again.
+RESUBSCRIBE = 10.0
+_probe = []
+_probe_lock = threading.Lock()
+
+
+def probe_node():
+    """This process's node for readiness checks, in a ROS context of its own, made once and
+    shut down at exit: checks come and go without making and unmaking DDS participants."""
+    with _probe_lock:
+        if not _probe:
+            import atexit
+
+            import rclpy
+            context = rclpy.Context()
+            rclpy.init(context=context)
+            node = rclpy.create_node(f'picking_stack_{os.getpid()}', context=context)
+
+            def close():
+                node.destroy_node()
+                rclpy.try_shutdown(context=context)
+            atexit.register(close)
+            _probe.append(node)
+        return _probe[0]
+
+
 class Stack:
     """Simulator, controller and planner in namespace ``ns``, each with its files from config/.
 
@@ -171,28 +197,31 @@ class Stack:
         """Until the controller holds the arm (joint_commands flow) and the planner listens
         (subscribes to its goal topics, serves its actions); RuntimeError if a node exits or time runs out.
 
-        Asks the ROS graph and reads one reference from a context of its own, so that it
-        works whether or not the caller has initialised rclpy."""
-        import rclpy
+        Asks the ROS graph and reads the newest reference through this process's probe node
+        (:func:`probe_node`), so that it works whether or not the caller has initialised rclpy.
+        A subscription that hears nothing for RESUBSCRIBE seconds is made again."""
         from rclpy.action.graph import get_action_names_and_types
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import JointState
 
-        context = rclpy.Context()
-        rclpy.init(context=context)
-        node = rclpy.create_node(f'picking_stack_{os.getpid()}', namespace=self.ns, context=context)
+        node = probe_node()
+        name = f'{self.ns.rstrip("/")}/{{}}'.format
         since = time.time()
-        newest = []
-        sub = node.create_subscription(JointState, 'joint_commands', newest.append, qos_profile_sensor_data)
+        sub, subscribed, holding = None, 0.0, False
         try:
             end = time.monotonic() + timeout
             while True:
-                got = sub.handle.take_message(JointState, False)
-                if got is not None:
-                    newest.append(got[0])
-                holding = any(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 > since for m in newest[-1:])
-                listening = all(node.count_subscribers(t) > 0 for t in ('goal_pose', 'goal_path', 'pick_target')) \
-                    and node.resolve_topic_name('pick') in dict(get_action_names_and_types(node))
+                if sub is None or (not holding and time.monotonic() - subscribed > RESUBSCRIBE):
+                    if sub is not None:
+                        node.destroy_subscription(sub)
+                    sub = node.create_subscription(JointState, name('joint_commands'), lambda _: None,
+                                                   qos_profile_sensor_data)
+                    subscribed = time.monotonic()
+                while (got := sub.handle.take_message(JointState, False)) is not None:
+                    stamp = got[0].header.stamp
+                    holding = holding or stamp.sec + stamp.nanosec * 1e-9 > since
+                listening = all(node.count_subscribers(name(t)) > 0 for t in ('goal_pose', 'goal_path', 'pick_target')) \
+                    and name('pick') in dict(get_action_names_and_types(node))
                 if holding and listening:
                     return
                 dead = [n for n, up in self.alive().items() if not up]
@@ -206,8 +235,8 @@ class Stack:
                                        f'(see {self.log_dir})')
                 time.sleep(0.05)
         finally:
-            node.destroy_node()
-            rclpy.shutdown(context=context)
+            if sub is not None:
+                node.destroy_subscription(sub)
 
     def stop(self, timeout=10.0):
         """Stop the three nodes at once (SIGINT, by pid); their exit codes by executable name."""
