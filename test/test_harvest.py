@@ -1,5 +1,7 @@
 """A tree harvested end to end on one arm, as picking-stack starts it (the shipped files)."""
 
+import os
+import signal
 import time
 
 import numpy as np
@@ -110,9 +112,10 @@ def test_the_cli_harvests_a_small_tree_box_to_next_apple_and_skips_what_it_canno
         assert not [m.message for _, m in client.controller_status if 'command limited' in m.message]
 
 
-def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_apple_in_hand(arm):
-    stack, client, trajectories = arm
-    key = first_apple_in_the_box(client, synthetic_tree(4, seed=6))
+def replace_tree(stack, client, trajectories, key):
+    """Send a new tree of two apples while harvest ``key`` (four apples) runs: the running one ends
+    superseded with the apples in the box by then, the new one is planned once, begins at rest in
+    the box after the apple in hand (dropped: the gripper open) and picks both."""
     seen = len(trajectories)
     second = tree_msg(client, synthetic_tree(2, seed=8))
     plans = stack.planner.output().count('harvest goal: harvest,')
@@ -125,13 +128,33 @@ def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_a
     done = final(client, stamp_key(second.header.stamp), 60.0)
     assert done['state'] == 'succeeded' and done['picked'] == '2', done
     assert stack.planner.output().count('harvest goal: harvest,') == plans + 1     # planned once
-    # The new harvest began at rest in the box, the apple in hand dropped (the gripper open).
     plan = trajectories[seen]
     start = np.array(plan.points[0].positions)
     assert np.linalg.norm(tool_at(start) - BOX) < 2e-3 and not np.any(plan.points[0].velocities)
     assert start[plan.joint_names.index('gripper_joint')] == pytest.approx(PickSettings().gripper_open)
     with client.lock:
         assert not [m.message for _, m in client.controller_status if 'command limited' in m.message]
+
+
+def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_apple_in_hand(arm):
+    stack, client, trajectories = arm
+    replace_tree(stack, client, trajectories, first_apple_in_the_box(client, synthetic_tree(4, seed=6)))
+
+
+def test_a_new_tree_after_the_controller_stalled_still_starts_in_the_box_after_the_apple_in_hand(arm):
+    """A stalled controller runs the harvest later than planned (it delays its trajectory rather
+    than jump): its feedback tells the planner, which plans the new tree from the box where the
+    delayed harvest will be, seconds ahead, not from the reference extrapolated."""
+    stack, client, trajectories = arm
+    key = first_apple_in_the_box(client, synthetic_tree(4, seed=6))
+    mark = client.mark()
+    os.kill(stack.controller.pid, signal.SIGSTOP)
+    time.sleep(0.4)
+    os.kill(stack.controller.pid, signal.SIGCONT)
+    client.wait_for(lambda: any('control loop stalled' in m.message for _, m in client.controller_status[
+        mark['controller']:]), 10.0, 'the controller to report its stall')
+    time.sleep(0.3)                      # its feedback (20 Hz) has reached the planner
+    replace_tree(stack, client, trajectories, key)
 
 
 def test_a_harvest_stopped_mid_way_says_which_apples_are_in_the_box_and_which_one_failed(arm, run_tool):

@@ -61,6 +61,7 @@ class ControllerCore(Monitoring, Splicing, CommandLimits, Validation):
         self.mode = Mode.WAITING         # waiting -> holding <-> moving; fault on a violation
         self.traj: PiecewisePolynomial | None = None
         self.t0 = 0.0                    # clock time of the trajectory's t = 0
+        self.origin = 0.0                # clock time of its message's time_from_start 0, stalls added
         self.lead_in_end = -np.inf       # clock time its lead-in to its first point ends
         self.measured_q = None
         self.measured_qd = None

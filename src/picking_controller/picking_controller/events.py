@@ -51,6 +51,7 @@ class Prepared:
     lead_in: float = 0.0                 # s: the lead-in from the reference to the first point
     goal: object = None                  # the action goal it runs for (None: a topic's trajectory)
     tolerances: object = None            # its goals.JointTolerances (None: the defaults)
+    origin: float = 0.0                  # clock time of its points' time_from_start 0 (its header stamp)
 
 
 @dataclass(frozen=True)

@@ -112,9 +112,10 @@ class Monitoring:
         if not excess > 0:
             return []
         self.t0 += excess
+        self.origin += excess
         self._stalled_until = now
         if self.next is not None:
-            self.next = replace(self.next, t_splice=self.next.t_splice + excess)
+            self.next = replace(self.next, t_splice=self.next.t_splice + excess, origin=self.next.origin + excess)
         self.version += 1                # a trajectory prepared before the stall is prepared again
         if self.mode != Mode.MOVING:
             return []

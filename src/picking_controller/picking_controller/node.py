@@ -24,6 +24,7 @@ from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.time import Time
@@ -252,6 +253,7 @@ class ControllerNode(Node):
             key = self.core.goal
             now = self.now()
             state = self.core.feedback(now) if key is not None else None
+            elapsed = self.core.trajectory_time(now)
         handle, _ = self._goals.get(key, (None, None))
         if not self._goals:
             self._feedback_timer.cancel()
@@ -262,6 +264,9 @@ class ControllerNode(Node):
         fb.header.stamp = Time(nanoseconds=int(now * 1e9)).to_msg()
         fb.joint_names = self.core.names
         fb.desired.positions, fb.desired.velocities, fb.desired.accelerations = q.tolist(), qd.tolist(), qdd.tolist()
+        # Where in the goal's own points the reference is: its sender sees how late stalls made it run.
+        if elapsed is not None:
+            fb.desired.time_from_start = Duration(nanoseconds=max(int(elapsed * 1e9), 0)).to_msg()
         fb.actual.positions = q_meas.tolist()
         fb.error.positions = (q - q_meas).tolist()
         if qd_meas is not None:

@@ -29,10 +29,12 @@ class Splicing:
         # trajectory's start state (with its velocity), not the "before the start" hold.
         return self.traj.state_at(max(now - self.t0, self.traj.start_time))
 
-    def _set(self, traj, t0, lead_in=0.0):
+    def _set(self, traj, t0, lead_in=0.0, origin=None):
         """Make ``traj`` (its t = 0 at clock time ``t0``, its first ``lead_in`` s a lead-in
-        from the reference) the active trajectory."""
+        from the reference, its message's time_from_start 0 at ``origin``, default ``t0``)
+        the active trajectory."""
         self.traj, self.t0 = traj, t0
+        self.origin = t0 if origin is None else origin
         self.lead_in_end = t0 + lead_in
         self.next = None
         self.version += 1
@@ -40,7 +42,7 @@ class Splicing:
     def _take_over(self, prepared):
         """Run a prepared trajectory from its splice time; the goal it replaces ends as preempted."""
         self._preempt(self.goal, prepared.goal)
-        self._set(prepared.traj, prepared.t_splice, prepared.lead_in)
+        self._set(prepared.traj, prepared.t_splice, prepared.lead_in, prepared.origin)
         self.goal, self.canceling = prepared.goal, False
         self.active_tolerances = prepared.tolerances or self.default_tolerances
         self.mode = Mode.MOVING
@@ -178,7 +180,7 @@ class Splicing:
             self._check_spline(traj)
             return Prepared(traj, now + float(rel[0]), version, Event('OK', 'trajectory accepted', {
                 'points': m, 'duration': float(traj.duration), 'starts_in': float(rel[0]), 'caught_up': 0.0}),
-                goal=goal, tolerances=tolerances)
+                goal=goal, tolerances=tolerances, origin=now + offset)
         # Points due within the lead are dropped and replaced by a lead-in from the current
         # reference: MIN_LEAD at first; a late trajectory whose lead-in would break a limit
         # catches up over a longer one (as long as the plan expects the arm near its reference).
@@ -224,7 +226,7 @@ class Splicing:
             'points': m, 'duration': float(traj.duration), 'starts_in': float(max(offset, 0.0)),
             # How much of the trajectory a catch-up lead-in replaced (it came late), s.
             'caught_up': float(times[keep][0] - times[0])}),
-            lead_in=float(rel[keep][0]), goal=goal, tolerances=tolerances)
+            lead_in=float(rel[keep][0]), goal=goal, tolerances=tolerances, origin=now + offset)
 
     def _carries_on(self, now, rel, pos, vel, acc):
         """True when a trajectory's first point, due later than the shortest lead-in, is the state
@@ -273,6 +275,15 @@ class Splicing:
         make every lead-in from it break the limit at once: the arm could take no new trajectory.)
         A joint at a position limit stops there; one at its speed limit stops accelerating past it."""
         return held_within_limits(q, qd, qdd, self.lower, self.upper, self.max_velocity, self.max_acceleration)
+
+    def trajectory_time(self, t):
+        """The time_from_start, in the running trajectory's own points, of the reference at clock
+        time ``t``: ``t`` less its header stamp and the delays stalls added since (see
+        :meth:`advance`); a sender learns from it how late its plan runs. None while no
+        trajectory's points run (holding, or braking after a fault or a cancel)."""
+        if self.next and t >= self.next.t_splice:
+            return t - self.next.origin
+        return t - self.origin if self.mode == Mode.MOVING and not self.canceling else None
 
     def _reference_at(self, t, scheduled=True):
         """The reference at clock time ``t`` as things stand, without switching: with the trajectory

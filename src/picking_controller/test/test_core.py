@@ -293,10 +293,31 @@ def test_a_stalled_tick_delays_the_trajectory_instead_of_jumping_ahead():
     (q, _, _), limited = c.command(0.799)
     assert limited == [] and q == pytest.approx(after)
     assert c.next.t_splice == pytest.approx(1.45)              # the scheduled one moved with it
+    assert c.next.origin == pytest.approx(1.45)
     assert c.advance(0.8) == []
     assert c.advance(1.2) == []                                # reported at most once a second ...
     assert c.delayed == pytest.approx(0.25 + 0.35)            # ... but every delay counts
     assert c.advance(2.5)[0].values['delay'] == pytest.approx(1.25)
+
+
+def test_the_trajectory_time_counts_from_the_stamp_less_the_stalls_delays():
+    """What feedback reports as the reference's time_from_start: its sender learns how late its
+    plan runs. A trajectory counts from its stamp (carried on or led in), and each stall's delay
+    is taken off (the scheduled one's too: see the test above)."""
+    c = core()
+    assert c.load(['a', 'b'], [0.5, 2.0], [[0.0, 0.0], [1.0, 0.0]], [], [], 10.0, now=10.0).level == 'OK'
+    assert c.trajectory_time(10.3) == pytest.approx(0.3)
+    for t in np.arange(10.0, 10.5, 0.001):
+        c.advance(t)
+        c.command(t)
+    c.advance(10.799)                                         # stalled 0.3 s: 0.25 s of delay
+    assert c.trajectory_time(10.799) == pytest.approx(0.549)
+    assert c.reference(10.799)[0] == pytest.approx(c.traj.state_at(10.799 - 10.25)[0])
+    # A trajectory that comes after the stall counts from its own stamp, led in from the reference.
+    assert c.load(['a', 'b'], [1.0, 2.0], [[0.0, 0.0], [0.0, 0.1]], [], [], 11.0, now=10.8, goal='g').level == 'OK'
+    assert c.trajectory_time(11.5) == pytest.approx(0.5)
+    assert c.cancel('g', 11.6)[0]                             # braking: no points of its own run
+    assert c.trajectory_time(11.7) is None
 
 
 def test_a_tracking_check_after_a_stall_compares_with_the_delayed_reference():

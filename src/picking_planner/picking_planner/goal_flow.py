@@ -21,6 +21,7 @@ from rclpy.action import CancelResponse
 from rclpy.time import Time
 from rclpy.task import Future
 
+from picking_common.joint_state import seconds
 from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
@@ -374,7 +375,7 @@ class GoalFlow:
         future.add_done_callback(partial(self._on_response, goal))
         self.pub_traj.publish(trajectory)
         policy.sent_plan(goal, plan.trajectory, start, names, flight.trajectory, self._ros_now(),
-                         self.get_parameter('reference_timeout').value)
+                         self.get_parameter('reference_timeout').value, stamp=stamp)
         summary = plan.summary(period)
         flight.extra = dict(method=plan.method, duration=plan.duration, start=start.source,
                             peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
@@ -420,7 +421,18 @@ class GoalFlow:
         if self.lifecycle.feedback(goal.key, error):
             self._transition(goal, 'executing', 'the controller runs its plan')
         flight = self.lifecycle.flights.get(goal.key)
-        if goal.feedback is not None and flight is not None:
+        if flight is None:
+            return
+        # A controller that stalled runs the plan later than sent: everything timed by it moves too.
+        later = self.policy.runs_late(flight.trajectory, self._clock_time(fb.header.stamp),
+                                      seconds(fb.desired.time_from_start),
+                                      list(fb.joint_names), fb.desired.positions)
+        if later:
+            flight.start += later
+            run = self._harvests.get(goal.key)
+            if run is not None:
+                run.start += later
+        if goal.feedback is not None:
             phase, left = flight.phase(self._ros_now())
             goal.feedback(phase, left, error)
 

@@ -26,6 +26,8 @@ DELIVERY = 0.08
 FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4, 'harvest': 2.0}
 #: rad: the controller's reference is following our last plan when within this of it.
 FOLLOWING = 1e-3
+#: s: a plan found to run later than known by less than this is not moved (stamps' rounding).
+DELAY_RESOLUTION = 1e-5
 #: Plans remembered to tell whether the controller's reference follows them: those that may still
 #: run (a goal flood sends one every few ms, each to start start_delay or more ahead), at most this many.
 SENT_KEPT = 2000
@@ -222,12 +224,44 @@ class GoalPolicy:
                   *(np.concatenate([c, o]) for c, o in zip(carried[1:], own[1:])))
         return points, start.carry_from
 
-    def sent_plan(self, goal, trajectory, start, names, trajectory_key, now, reference_timeout):
-        """A plan for ``goal`` was sent as the trajectory named ``trajectory_key``. The plans no
-        fresh reference can be on any more are forgotten (memory stays small)."""
+    def sent_plan(self, goal, trajectory, start, names, trajectory_key, now, reference_timeout, stamp=None):
+        """A plan for ``goal`` was sent as the trajectory named ``trajectory_key``, stamped ``stamp``
+        (default: its start). The plans no fresh reference can be on any more are forgotten
+        (memory stays small)."""
         forget_before(self.sent, now - reference_timeout)
-        self.sent.append(SentPlan(trajectory, start.time, names, start.carries_on))
+        self.sent.append(SentPlan(trajectory, start.time, names, start.carries_on, trajectory_key,
+                                  start.time if stamp is None else stamp))
         self.newest = (trajectory_key, goal, self.sent[-1])
+
+    def runs_late(self, trajectory_key, now, elapsed, names, desired):
+        """The controller's feedback on the trajectory ``trajectory_key``: at ``now`` its reference is
+        ``elapsed`` s into the trajectory's points, at positions ``desired`` of the joints ``names``.
+
+        A controller whose loop stalled runs its trajectories later than their stamps say (it delays
+        them instead of jumping ahead). The plan is then moved to where it really runs, so that
+        the starts predicted from it (a replacing harvest's, seconds ahead) stay on it. Checked
+        first: the plan, so moved, must be at ``desired`` then. Returns how much later than
+        known before it runs (s), 0.0 when no later."""
+        i = next((i for i, p in enumerate(self.sent) if p.key == trajectory_key), None)
+        if i is None or not elapsed > 0:
+            return 0.0
+        plan = self.sent[i]
+        delay = now - plan.stamp - elapsed
+        later = delay - plan.delay
+        if not later > DELAY_RESOLUTION:
+            return 0.0
+        t = now - (plan.start + later)
+        if t < 0.0:                      # still in what it carries of older plans, or its lead-in
+            return 0.0
+        given = [k for k, n in enumerate(names) if n in plan.names]
+        cols = [plan.names.index(names[k]) for k in given]
+        q = plan.trajectory.state_at(t)[0]
+        if not given or np.abs(q[cols] - np.asarray(desired, float)[given]).max() > FOLLOWING:
+            return 0.0
+        self.sent[i] = plan._replace(start=plan.start + later, delay=delay)
+        if self.newest is not None and self.newest[2] is plan:
+            self.newest = (*self.newest[:2], self.sent[i])
+        return later
 
     # -- the controller's verdict ------------------------------------------------------------
     def late(self, trajectory_key):

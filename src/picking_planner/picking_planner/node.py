@@ -180,6 +180,10 @@ class PlannerNode(GoalFlow, Node):
         """The controller's clock (the ROS clock), s since :attr:`_origin_ns`."""
         return (self.get_clock().now().nanoseconds - self._origin_ns) * 1e-9
 
+    def _clock_time(self, stamp):
+        """A ROS stamp (builtin_interfaces/Time) on the clock of :meth:`_ros_now`."""
+        return (stamp.sec * 1_000_000_000 + stamp.nanosec - self._origin_ns) * 1e-9
+
     def _stamp_ns(self, t):
         """A time of :meth:`_ros_now` as a stamp, ns."""
         return self._origin_ns + int(round(t * 1e9))
@@ -206,7 +210,7 @@ class PlannerNode(GoalFlow, Node):
         msg = self.commands.take()
         if msg is None:
             return None
-        stamp = (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec - self._origin_ns) * 1e-9
+        stamp = self._clock_time(msg.header.stamp)
         if self._ros_now() - stamp > self.get_parameter('reference_timeout').value:
             return None                      # no controller is publishing: start from the measurement
         try:

@@ -13,12 +13,19 @@ from .trajectory.waypoints import one_sided, waypoints
 class SentPlan(NamedTuple):
     """A plan as sent: its trajectory, its start on the controller's clock, its joint names,
     and whether it carries on from the plans sent before it (starts from the state of the one
-    running at ``start``) or from elsewhere (an extrapolated reference, the measured state)."""
+    running at ``start``) or from elsewhere (an extrapolated reference, the measured state).
+    ``key``: the trajectory as the controller names it; ``stamp``: the time of its points'
+    time_from_start 0 (before ``start`` when it carries older plans' points); ``delay``: how
+    much later than sent the controller runs it (stalls of its loop: see
+    :meth:`GoalPolicy.runs_late`), already in ``start``."""
 
     trajectory: object
     start: float
     names: list
     carries_on: bool = True
+    key: str = ''
+    stamp: float = 0.0
+    delay: float = 0.0
 
 
 def plan_active(sent, t):
@@ -82,7 +89,8 @@ def carried_points(sent, t_from, t_until, period, names):
     starts = sorted({p.start for p in sent if t_from < p.start < t_until} | {t_from})
     parts, before, previous = [], None, None
     for lo, hi in zip(starts, starts[1:] + [t_until]):
-        traj, t0, plan_names, _ = plan_active(sent, lo)
+        active = plan_active(sent, lo)
+        traj, t0, plan_names = active.trajectory, active.start, active.names
         try:
             cols = [plan_names.index(n) for n in names]
         except ValueError:

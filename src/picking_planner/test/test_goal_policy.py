@@ -83,6 +83,30 @@ def test_a_plan_carries_on_from_the_plan_the_reference_follows(policy):
     assert np.allclose(points[1][0], second.state_at(0.0)[0])
 
 
+def test_a_plan_the_controller_runs_late_is_moved_so_that_starts_far_ahead_stay_on_it(policy):
+    """A controller that stalled runs the plan later than its stamp (its feedback says where in the
+    plan's points its reference is): the plan is moved by that delay, and a start predicted seconds
+    ahead (a replacing harvest's) is the plan's state then, not the reference extrapolated."""
+    names = list('abcdef')
+    move = trajectory.quintic(HOME, HOME + 0.5, 4.0)
+    policy.sent_plan(goal(), move, policy.start_state(10.0, None, HOME), names, '10.000000000', 10.0, 0.1)
+    q, qd, qdd = move.state_at(1.0)
+    # Without the feedback, the reference at 11.3 s is not on the plan: extrapolated 2 s ahead.
+    lost = policy.start_state(13.3, (q, qd, qdd, 11.3), HOME)
+    assert not lost.carries_on
+    # Feedback at 11.3 s: 1.0 s into the plan's points, which are there: it runs 0.3 s late.
+    assert policy.runs_late('10.000000000', 11.3, 1.0, names + ['gripper_joint'], [*q, 0.09]) == pytest.approx(0.3)
+    assert policy.sent[0].start == pytest.approx(10.3) and policy.sent[0].delay == pytest.approx(0.3)
+    found = policy.start_state(13.3, (q, qd, qdd, 11.3), HOME)
+    assert found.carries_on and np.allclose(found.state[0], move.state_at(3.0)[0])
+    # Known already, a feedback that does not match, one for another plan, one without a time: no move.
+    assert policy.runs_late('10.000000000', 11.4, 1.1, names, move.state_at(1.1)[0]) == 0.0
+    assert policy.runs_late('10.000000000', 11.6, 1.1, names, move.state_at(1.1)[0] + 0.01) == 0.0
+    assert policy.runs_late('12.000000000', 12.6, 0.3, names, HOME) == 0.0
+    assert policy.runs_late('10.000000000', 11.6, 0.0, names, HOME) == 0.0
+    assert policy.sent[0].start == pytest.approx(10.3)
+
+
 def test_a_late_plan_is_planned_again_up_to_the_limit_then_answered_as_not_run(policy):
     g = goal()
     start = Start((HOME, 0 * HOME, 0 * HOME), 'measured', 10.0)
