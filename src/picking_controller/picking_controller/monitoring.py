@@ -131,7 +131,8 @@ class Monitoring:
         """The watchdog; returns events (feedback lost)."""
         if self.mode == Mode.WAITING or not self.feedback_ok:
             return []
-        if now - self.measured_time > self.tol.state_timeout:
+        # Counted while this loop runs: a loop that stalled itself could read no states meanwhile.
+        if now - max(self.measured_time, self._stalled_until) > self.tol.state_timeout:
             self.feedback_ok = False
             was_moving = self.mode == Mode.MOVING
             self._stop(now)

@@ -140,6 +140,16 @@ def test_watchdog_reports_feedback_lost_and_refuses_to_move_blind():
     assert 'feedback restored' in events[0].message
 
 
+def test_the_watchdog_counts_only_while_the_loop_runs():
+    """A loop stalled longer than state_timeout could read no states meanwhile: the feedback
+    is lost only if none comes within state_timeout after the stall."""
+    c = core(state_timeout=0.2)
+    c.advance(0.0)
+    assert c.advance(0.5) == [] and c.tick(0.5) == []         # stalled 0.5 s (holding: no delay to report)
+    assert c.tick(0.65) == []
+    assert 'feedback lost' in c.tick(0.71)[0].message
+
+
 def test_restored_feedback_from_a_moved_arm_is_held_where_it_is_not_driven_back():
     c = core(state_timeout=0.2)
     c.tick(0.3)                                               # feedback lost, holding at 0
