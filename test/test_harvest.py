@@ -144,7 +144,8 @@ def test_a_new_tree_while_harvesting_replaces_the_apples_not_started_after_the_a
 def test_a_new_tree_after_the_controller_stalled_still_starts_in_the_box_after_the_apple_in_hand(arm):
     """A stalled controller runs the harvest later than planned (it delays its trajectory rather
     than jump): its feedback tells the planner, which plans the new tree from the box where the
-    delayed harvest will be, seconds ahead, not from the reference extrapolated."""
+    delayed harvest will be, seconds ahead, not from the reference extrapolated (a tree that
+    comes before that feedback waits for it)."""
     stack, client, trajectories = arm
     key = first_apple_in_the_box(client, synthetic_tree(4, seed=6))
     mark = client.mark()
@@ -153,8 +154,7 @@ def test_a_new_tree_after_the_controller_stalled_still_starts_in_the_box_after_t
     os.kill(stack.controller.pid, signal.SIGCONT)
     client.wait_for(lambda: any('control loop stalled' in m.message for _, m in client.controller_status[
         mark['controller']:]), 10.0, 'the controller to report its stall')
-    time.sleep(0.3)                      # its feedback (20 Hz) has reached the planner
-    replace_tree(stack, client, trajectories, key)
+    replace_tree(stack, client, trajectories, key)     # (perhaps before its feedback: the goal waits for it)
 
 
 def test_a_harvest_stopped_mid_way_says_which_apples_are_in_the_box_and_which_one_failed(arm, run_tool):

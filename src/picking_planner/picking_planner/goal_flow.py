@@ -26,7 +26,7 @@ from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
 from . import around
-from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal
+from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal, Unsettled
 from .harvest import Harvest, HarvestGoal, HarvestRun
 from .collision import STEP as COLLISION_STEP, Allowed
 from .kinematics import Unreachable, pose_matrix
@@ -335,6 +335,15 @@ class GoalFlow:
                     start = later
                     break
                 delay = 2.0 * delay + (time.perf_counter() - t0)
+        except Unsettled as exc:
+            # Asked again at the node's next tenth of a second, until WAIT_LIMIT after it came.
+            if self._now() - goal.came < WAIT_LIMIT:
+                old = self.policy.wait(goal)
+                if old is not None and old is not goal:
+                    self._end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
+                return
+            self._end(goal, Ending(Outcome.REFUSED, f'{exc} (waited {WAIT_LIMIT:g} s)'))
+            return
         except (ValueError, Unreachable) as exc:
             self._end(goal, Ending(Outcome.REFUSED, str(exc)))
             return

@@ -28,6 +28,9 @@ FIRST_PLANNING = {'pose': 0.05, 'path': 0.1, 'pick': 0.4, 'harvest': 2.0}
 FOLLOWING = 1e-3
 #: s: a plan found to run later than known by less than this is not moved (stamps' rounding).
 DELAY_RESOLUTION = 1e-5
+#: s: a moving reference off a running plan is extrapolated at most this far ahead (its acceleration
+#: brought to zero over it); a start further ahead waits for the controller to say where its plan runs.
+EXTRAPOLATION_LIMIT = 0.5
 #: Plans remembered to tell whether the controller's reference follows them: those that may still
 #: run (a goal flood sends one every few ms, each to start start_delay or more ahead), at most this many.
 SENT_KEPT = 2000
@@ -40,6 +43,10 @@ LATE_REPLANS = 2
 #: s a goal waits for the first joint_states, or for a controller to subscribe, before it is refused.
 WAIT_LIMIT = 5.0
 ZERO_KEY = '0.000000000'
+
+
+class Unsettled(ValueError):
+    """Where a plan would start cannot be told yet (see :meth:`GoalPolicy.start_state`): the goal waits."""
 
 
 class Start(NamedTuple):
@@ -165,7 +172,10 @@ class GoalPolicy:
         that a newer plan, not started yet, will take over from), the exact state of the plan
         active at the start time, even across its end. Else the reference extrapolated from its
         stamp (:func:`predict_reference`: another client's trajectory, a catch-up lead-in, a
-        stalled controller), held within the limits. Without a reference, ``measured_q`` at rest.
+        stalled controller), held within the limits; :class:`Unsettled` when that reference moves
+        while one of our plans runs and ``t_start`` lies more than EXTRAPOLATION_LIMIT ahead (a
+        controller that stalled runs the plan late, and says by how much in its next feedback:
+        see :meth:`runs_late`). Without a reference, ``measured_q`` at rest.
         ``carry_from``: when the plan carries on from plans that start after the reference's
         stamp (the controller may not run them: see :func:`carried_points`), where to carry them
         from (:func:`carry_start`); else None.
@@ -179,6 +189,10 @@ class GoalPolicy:
                 return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
                              'reference', t_start, carry_start(self.sent, stamp, t_start), carries_on=True)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
+            if (dt > EXTRAPOLATION_LIMIT and then is not None and stamp - then.start < then.trajectory.duration
+                    and (np.abs(qd).max() > 1e-6 or np.abs(qdd).max() > 1e-6)):
+                raise Unsettled(f"the controller's reference is off the plan it runs (delayed by a stall it has not "
+                                f"reported yet?): where the arm is {dt:.2f} s ahead is unknown")
             return Start(feasible_start(self.arm, *predict_reference(q, qd, qdd, dt)), 'reference', t_start)
         if measured_q is None:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')

@@ -5,7 +5,7 @@ import pytest
 
 from picking_planner import trajectory
 from picking_planner.goal_policy import (DELIVERY, FIRST_PLANNING, LATE_REPLANS, REPEAT_WINDOW, WAIT_LIMIT, Goal,
-                                         GoalPolicy, Start)
+                                         GoalPolicy, Start, Unsettled)
 
 HOME = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
 
@@ -91,9 +91,11 @@ def test_a_plan_the_controller_runs_late_is_moved_so_that_starts_far_ahead_stay_
     move = trajectory.quintic(HOME, HOME + 0.5, 4.0)
     policy.sent_plan(goal(), move, policy.start_state(10.0, None, HOME), names, '10.000000000', 10.0, 0.1)
     q, qd, qdd = move.state_at(1.0)
-    # Without the feedback, the reference at 11.3 s is not on the plan: extrapolated 2 s ahead.
-    lost = policy.start_state(13.3, (q, qd, qdd, 11.3), HOME)
-    assert not lost.carries_on
+    # Without the feedback, the reference at 11.3 s is not on the plan: extrapolated a little way
+    # ahead, never 2 s (the goal waits for the feedback).
+    assert not policy.start_state(11.6, (q, qd, qdd, 11.3), HOME).carries_on
+    with pytest.raises(Unsettled, match='off the plan it runs'):
+        policy.start_state(13.3, (q, qd, qdd, 11.3), HOME)
     # Feedback at 11.3 s: 1.0 s into the plan's points, which are there: it runs 0.3 s late.
     assert policy.runs_late('10.000000000', 11.3, 1.0, names + ['gripper_joint'], [*q, 0.09]) == pytest.approx(0.3)
     assert policy.sent[0].start == pytest.approx(10.3) and policy.sent[0].delay == pytest.approx(0.3)
