@@ -4,7 +4,8 @@ it from another direction and the simulator, as a witness, reports no contact; w
 checking off (the parameter service), the same pick hits the branch and the witness says so; a
 pose goal whose straight move crosses the branch goes around it; a pose goal into the branch is
 refused naming it; a canopy cloud is taken from ``canopy_points``, and one that comes while a pick or a
-harvest runs stops it where it would now touch."""
+harvest runs stops it where it would now touch, or, when it blocks only a harvest's apples not started,
+has them planned again around it."""
 
 import time
 
@@ -202,6 +203,55 @@ def test_a_cloud_that_comes_mid_harvest_stops_it_and_the_apples_in_the_box_are_r
         assert 'stopped: the world changed while it ran' in end['message'] and 'the canopy' in end['message'], end
         assert 1 <= int(end['picked']) < 3 and first['apple'] in end['picked_apples'].split(), end
         client.wait_for(lambda: arm_at_rest(client), 10.0, 'the arm at rest')
+        assert started(contacts, seen) == []
+    finally:
+        clear_canopy(stack, client, pub)
+
+
+def test_a_cloud_that_blocks_only_apples_not_started_has_the_rest_of_the_harvest_planned_around_it(arm):
+    """A new cloud that encloses an apple of the harvest not started while an earlier one is in hand: the harvest is
+    not stopped; the apples not started are planned again around the new canopy (the same goal goes on),
+    the enclosed apple is skipped naming the canopy, the others are picked, and the goal succeeds."""
+    stack, client, contacts = arm
+    apples = []
+    for T in synthetic_tree(40, seed=29):         # five apples a shell round one of them leaves clear
+        if np.linalg.norm(T[:3, 3] - A) > 0.25 and all(np.linalg.norm(T[:3, 3] - U[:3, 3]) > 0.25 for U in apples):
+            apples.append(T)
+    apples = apples[:5]
+    assert len(apples) == 5
+    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
+    harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
+    client.wait_for(lambda: pub.get_subscription_count() > 0 and harvest.get_subscription_count() > 0, 10.0,
+                    'the planner on canopy_points and harvest_targets')
+    tree = PoseArray(poses=[make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
+                            for T in apples])
+    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
+    key, seen = stamp_key(tree.header.stamp), len(contacts)
+    mark = client.mark()
+    client.send(harvest, tree)
+
+    def of_harvest(state=None, apple_state=None):
+        return [status_values(m) | {'message': m.message} for m in client.answers(mark)
+                if status_values(m).get('goal') == key and (state is None or status_values(m).get('state') == state)
+                and (apple_state is None or status_values(m).get('apple_state') == apple_state)]
+    accepted = client.wait_for(lambda: of_harvest('accepted'), 60.0, 'the harvest accepted')[0]
+    order = list(dict.fromkeys(int(part.split(':')[0].split()[1]) for part in accepted['segments'].split('; ')
+                               if part.startswith('apple ')))
+    assert len(order) >= 4, accepted                     # (one may be out of reach from the start)
+    # The apple to enclose: not the first nor the one in hand when the cloud comes, and the farthest from the
+    # box (at -y) of those left, so that no other apple's way to and from the box passes by it.
+    last = max(order[2:], key=lambda i: apples[i][1, 3])
+    client.wait_for(lambda: of_harvest(apple_state='picked'), 60.0, 'the first apple in the box')
+    cloud = cloud_message(shell_around(apples[last][:3, 3], seed=11), 'base_link')
+    try:
+        publish_until(client, pub, cloud, lambda: of_harvest('replanned'), 30.0, 'the harvest planned again')
+        end = client.wait_for(lambda: [m for m in of_harvest() if m.get('state') in FINAL], 90.0,
+                              'the harvest to end')[0]
+        assert end['state'] == 'succeeded', end
+        assert str(last) in end['skipped_apples'].split() and int(end['picked']) == len(order) - 1, end
+        skipped = [m for m in of_harvest(apple_state='skipped') if m['apple'] == str(last)]
+        assert len(skipped) == 1 and 'canopy' in skipped[0]['message'], skipped
+        assert sorted(int(m['apple']) for m in of_harvest(apple_state='picked')) == sorted(set(order) - {last})
         assert started(contacts, seen) == []
     finally:
         clear_canopy(stack, client, pub)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 import uuid
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
@@ -206,8 +207,10 @@ class GoalFlow:
 
     def _recheck_running(self):
         """The world changed (a new scene or canopy): the rest of every plan the controller runs is
-        checked against it, and one that would now touch something is stopped there (the controller
-        brakes to rest; the goal ends aborted with the contact)."""
+        checked against it. A harvest that would touch something only after the apple in hand is planned
+        again from there, its apples not started around the new world (the same goal goes on); any other
+        plan that would now touch something is stopped there (the controller brakes to rest; the goal
+        ends aborted with the contact)."""
         now = self._ros_now()
         for flight in list(self.lifecycle.flights.values()):
             if flight.handle is None or flight.plan is None or flight.cancel or flight.stopped:
@@ -216,11 +219,50 @@ class GoalFlow:
             if rest.duration <= 0.0:
                 continue
             contact = self.world.check(rest, list(flight.regions), slack=COLLISION_STEP / 2)
-            if contact is not None:
-                flight.stopped = (f'the world changed while it ran: {contact} (t from the change); the arm braked '
-                                  'to rest')
-                self.get_logger().warning(f'{flight.goal.kind} goal {flight.goal.key}: {flight.stopped}')
-                flight.handle.cancel_goal_async()
+            if contact is None:
+                continue
+            changed = f'the world changed while it ran: {contact} (t from the change)'
+            again = self._harvest_around(flight, now, contact, changed)
+            if again is None:
+                self._stop(flight, changed)
+                continue
+            words = (f'{changed}; the apples not started ({" ".join(str(i) for i in again.plan.indices)}) are '
+                     'planned again around it, from the box after the apple in hand')
+            self.get_logger().warning(f'harvest goal {flight.goal.key}: {words}')
+            self._answer(flight.goal.key, status('picking_planner', Level.WARN, f'harvest goal replanned: {words}',
+                                                 goal=flight.goal.key, kind='harvest', state='replanned',
+                                                 **_stamp(flight.goal)))
+            self._handle(again)
+
+    def _stop(self, flight, why):
+        """Stop a running plan at the controller (it brakes to rest): its goal ends aborted, ``why``."""
+        flight.stopped = f'{why}; the arm braked to rest'
+        self.get_logger().warning(f'{flight.goal.kind} goal {flight.goal.key}: {flight.stopped}')
+        flight.handle.cancel_goal_async()
+
+    def _refuse(self, goal, words):
+        """A goal's plan cannot go out: the goal ends refused; or, for the rest of a running harvest
+        planned again around a changed world, the plan still running is stopped (it would hit)."""
+        running = self.lifecycle.flights.get(goal.key)
+        if getattr(goal.plan, 'continues', False) and running is not None and running.handle is not None:
+            self._stop(running, f'{goal.plan.why}, and the rest could not be planned again around it ({words})')
+            return
+        self._end(goal, Ending(Outcome.REFUSED, words))
+
+    def _harvest_around(self, flight, now, contact, changed):
+        """The goal of a running harvest planned again around a changed world (``contact``, the first along
+        the rest of its plan; ``changed``, it in words), its apples not started before the apple in hand
+        is in the box (None: not a harvest, the contact comes sooner, or no apple is left)."""
+        run = self._harvests.get(flight.goal.key)
+        if flight.goal.kind != 'harvest' or run is None or not isinstance(flight.goal.plan, HarvestGoal):
+            return None
+        # Where a plan made now would take over (as _handle will place it).
+        splice = run.after_apple_in_hand(now + self.policy.delay(flight.goal))
+        left = [a.index for a in run.plan.apples if run.start + a.start >= splice - 1e-9]
+        if now + contact.time <= splice or not left:
+            return None
+        rest = flight.goal.plan.rest(Harvest(PickCycle(self.planner, self.pick, self.world.checker)), left, changed)
+        return replace(flight.goal, plan=rest)
 
     def _cancel(self, handle):
         """A goal in flight is canceled at the controller (which brakes the arm to rest, then
@@ -345,14 +387,14 @@ class GoalFlow:
             self._end(goal, Ending(Outcome.REFUSED, f'{exc} (waited {WAIT_LIMIT:g} s)'))
             return
         except (ValueError, Unreachable) as exc:
-            self._end(goal, Ending(Outcome.REFUSED, str(exc)))
+            self._refuse(goal, str(exc))
             return
         # Every plan is checked against the world before it is sent (a pick's cycles were planned clear of
         # it; this also catches a pose or path goal's plan, and a harvest's way home).
         regions = [Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in getattr(goal.plan, 'apples', ())]
         contact = self.world.check(plan.trajectory, regions, slack=COLLISION_STEP / 2)
         if contact is not None:
-            self._end(goal, Ending(Outcome.REFUSED, f'the plan would hit an obstacle: {contact}'))
+            self._refuse(goal, f'the plan would hit an obstacle: {contact}')
             return
         planning_ms = (time.perf_counter() - t0) * 1e3
         names = list(plan.joint_names or self.names)
@@ -363,8 +405,8 @@ class GoalFlow:
             # Checked as the controller will check it: a plan it would refuse is never sent.
             check_joint_limits(self.arm, *points, names=names)
         except Unreachable as exc:
-            self._end(goal, Ending(Outcome.REFUSED, f'the plan breaks a limit (from {start.words()}: the arm\'s '
-                                                    f'motion cannot be carried on within it): {exc}'))
+            self._refuse(goal, f'the plan breaks a limit (from {start.words()}: the arm\'s motion cannot be '
+                               f'carried on within it): {exc}')
             return
         trajectory = self.messages.joint_trajectory(self._stamp_ns(stamp), '', names, *points)
         # A long plan from rest (a harvest) may be due before its message is even built: it starts later as
@@ -376,12 +418,13 @@ class GoalFlow:
                 trajectory.header.stamp = Time(nanoseconds=self._stamp_ns(stamp)).to_msg()
         stamp_ns = self._stamp_ns(stamp)
         policy.planned(goal, time.perf_counter() - t0)     # the next goal of its kind expects as long to be ready
+        running = self.lifecycle.flights.get(goal.key) if getattr(goal.plan, 'continues', False) else None
         flight = self.lifecycle.sent(Flight(
             goal, start.time, plan.duration, [(s.label, s.start, s.start + s.duration) for s in plan.segments],
-            self._now(), stamp_key(stamp_ns), plan=plan.trajectory, regions=tuple(regions)))
+            self._now(), stamp_key(stamp_ns), plan=plan.trajectory, regions=tuple(regions), replaces=running))
         future = self.controller.send_goal_async(FollowJointTrajectory.Goal(trajectory=trajectory),
-                                                 feedback_callback=partial(self._on_feedback, goal))
-        future.add_done_callback(partial(self._on_response, goal))
+                                                 feedback_callback=partial(self._on_feedback, goal, flight))
+        future.add_done_callback(partial(self._on_response, goal, flight))
         self.pub_traj.publish(trajectory)
         policy.sent_plan(goal, plan.trajectory, start, names, flight.trajectory, self._ros_now(),
                          self.get_parameter('reference_timeout').value, stamp=stamp)
@@ -394,7 +437,10 @@ class GoalFlow:
         if kind == 'harvest':
             for run in self._harvests.values():   # the one it replaces: the apples in the box by then
                 run.until = min(run.until, start.time)
-            self._harvests[goal.key] = HarvestRun(goal.plan.last, start.time)
+            # (The same goal planned again around a changed world carries on from its run: those apples count.)
+            before = self._harvests.pop(goal.key, None)
+            self._harvests[goal.key] = HarvestRun(goal.plan.last, start.time,
+                                                  before=before if goal.plan.continues else None)
             for skip in goal.plan.last.skipped:
                 self._publish_apple(goal.key, skip.index, 'skipped', skip.reason)
         self.get_logger().info(f'{kind} goal: {plan.method}, {plan.duration:.3f} s, planned in {planning_ms:.1f} ms')
@@ -406,15 +452,15 @@ class GoalFlow:
         self._answer(goal.key, status('picking_planner', Level.OK, f'{goal.kind} goal {state}{again}: {words}', **_stamp(goal),
                                       goal=goal.key, kind=goal.kind, state=state, **extra))
 
-    def _on_response(self, goal, future):
+    def _on_response(self, goal, sent, future):
         handle = future.result()
-        ending = self.lifecycle.response(goal.key, handle.accepted, self._now())
+        ending = self.lifecycle.response(goal.key, handle.accepted, self._now(), sent)
         self._serve_waiting()                 # the goal that waited for this answer
         if ending is not None:
-            self._end(goal, ending)
+            self._refuse(self._restored(goal, sent), ending.message)
             return
         flight = self.lifecycle.flights.get(goal.key)
-        if flight is None:                    # ended meanwhile (overdue)
+        if flight is not sent:                # ended meanwhile (overdue), or planned again since
             handle.cancel_goal_async()
             return
         flight.handle = handle
@@ -424,32 +470,34 @@ class GoalFlow:
         self._transition(goal, 'accepted', f"{flight.extra.get('method')}, {flight.duration:.3f} s{taken}")
         handle.get_result_async().add_done_callback(partial(self._on_result, goal, flight))
 
-    def _on_feedback(self, goal, msg):
+    def _on_feedback(self, goal, sent, msg):
         fb = msg.feedback
         error = float(np.max(np.abs(fb.error.positions))) if len(fb.error.positions) else 0.0
-        if self.lifecycle.feedback(goal.key, error):
+        if self.lifecycle.feedback(goal.key, error, sent):
             self._transition(goal, 'executing', 'the controller runs its plan')
-        flight = self.lifecycle.flights.get(goal.key)
-        if flight is None:
-            return
         # A controller that stalled runs the plan later than sent: everything timed by it moves too.
-        later = self.policy.runs_late(flight.trajectory, self._clock_time(fb.header.stamp),
-                                      seconds(fb.desired.time_from_start),
-                                      list(fb.joint_names), fb.desired.positions)
+        later = self.policy.runs_late(sent.trajectory, self._clock_time(fb.header.stamp),
+                                      seconds(fb.desired.time_from_start), list(fb.joint_names),
+                                      fb.desired.positions)
         if later:
-            flight.start += later
             run = self._harvests.get(goal.key)
+            while run is not None and run.start != sent.start:     # the run of this plan (see HarvestRun.before)
+                run = run.before
+            sent.start += later
             if run is not None:
                 run.start += later
-        if goal.feedback is not None:
-            phase, left = flight.phase(self._ros_now())
+        if goal.feedback is not None and goal.key in self.lifecycle.flights:
+            # (The plan this feedback is about: one the same goal was planned again after runs on until the
+            # newer one takes over.)
+            phase, left = sent.phase(self._ros_now())
             goal.feedback(phase, left, error)
 
     def _on_result(self, goal, flight, future):
         response = future.result()
         words = {GoalStatus.STATUS_SUCCEEDED: 'succeeded', GoalStatus.STATUS_CANCELED: 'canceled'}.get(
             response.status, 'aborted')
-        ending = self.lifecycle.result(goal.key, words, response.result.error_code, response.result.error_string)
+        ending = self.lifecycle.result(goal.key, words, response.result.error_code, response.result.error_string,
+                                       flight)
         if ending is None:
             return                            # ended already (overdue)
         if not ending.late:
@@ -463,7 +511,18 @@ class GoalFlow:
             return
         self.get_logger().warning(f'{goal.kind} goal {goal.key}: the controller got its plan too late '
                                   f'({ending.message}); planning it again, further ahead')
-        self._handle(late.goal)
+        self._handle(self._restored(late.goal, flight))
+
+    def _restored(self, goal, sent):
+        """``goal`` after its plan ``sent`` did not run: the plan it was to take over from (the rest of a
+        harvest planned again around a changed world) is the goal's running plan again, its run the goal's."""
+        if sent.replaces is not None and goal.key not in self.lifecycle.flights:
+            self.lifecycle.flights[goal.key] = sent.replaces
+        run = self._harvests.get(goal.key)
+        if run is not None and run.before is not None and run.start == sent.start:
+            run.before.until = np.inf
+            self._harvests[goal.key] = run.before
+        return goal
 
 
 class _Rest:

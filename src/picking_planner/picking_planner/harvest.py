@@ -218,11 +218,12 @@ class Harvest:
         return bool(np.abs(qd).max() < 1e-9 and np.abs(qdd).max() < 1e-9
                     and np.linalg.norm(self.arm.fk(q)[:3, 3] - np.asarray(self.cycle.s.box_position)) < IN_BOX)
 
-    def reach(self, apples):
+    def reach(self, apples, indices=None):
         """``(ok, skipped)``: for each reachable apple ``(index, T, q at P1, q above the box after it)``;
-        for the others a :class:`Skipped` with the knot point that cannot be reached."""
+        for the others a :class:`Skipped` with the knot point that cannot be reached. ``indices``: each
+        apple's index in its goal (default: its place in ``apples``)."""
         ok, skipped = [], []
-        for i, T in enumerate(apples):
+        for i, T in zip(range(len(apples)) if indices is None else indices, apples):
             try:
                 poses = self.cycle.key_poses(T)
                 q = {}
@@ -260,8 +261,9 @@ class Harvest:
         last = times(q_top, self.home[None])[:, 0]
         return first, between, last
 
-    def plan(self, start, apples, gripper_start=None, ordered=True):
-        """The harvest of ``apples`` (4x4 grasp poses in the base frame) from ``start = (q, qd, qdd)``.
+    def plan(self, start, apples, gripper_start=None, ordered=True, indices=None):
+        """The harvest of ``apples`` (4x4 grasp poses in the base frame) from ``start = (q, qd, qdd)``;
+        ``indices``: each apple's index in its goal (default: its place in ``apples``).
 
         From rest in the box (:meth:`in_box`: a harvest replacing one whose apple in hand has just been
         dropped) the arm rises out of it to the first apple; from anywhere else it goes by way of home.
@@ -270,7 +272,7 @@ class Harvest:
         """
         t0 = time.perf_counter()
         from_box = self.in_box(start)
-        ok, skipped = self.reach(apples)
+        ok, skipped = self.reach(apples, indices)
         q_from = self.home if not from_box else np.asarray(start[0], float)[:self.arm.dof]
         if ordered:
             ok, est, given = self.order(ok, q_from)
@@ -304,14 +306,24 @@ class Harvest:
 
 class HarvestGoal:
     """``plan(start, gripper)`` of a harvest goal, as the planner node calls every goal's: the
-    harvest of ``apples`` from ``start``; the :class:`HarvestPlan` it made is kept in ``last``."""
+    harvest of ``apples`` (their ``indices`` in the goal: by default their places) from ``start``;
+    the :class:`HarvestPlan` it made is kept in ``last``."""
 
-    def __init__(self, harvest, apples):
+    def __init__(self, harvest, apples, indices=None, why=''):
         self.harvest, self.apples, self.last = harvest, list(apples), None
+        self.indices = list(range(len(self.apples))) if indices is None else list(indices)
+        self.why = why                      # the rest of a running harvest planned again (see rest): why
+        self.continues = bool(why)
 
     def __call__(self, start, gripper=None):
-        self.last = self.harvest.plan(start, self.apples, gripper_start=gripper)
+        self.last = self.harvest.plan(start, self.apples, gripper_start=gripper, indices=self.indices)
         return self.last.plan
+
+    def rest(self, harvest, indices, why):
+        """The same goal's apples ``indices`` (not started yet), to be planned with ``harvest`` (a new
+        world's): a harvest planned again around what changed (``why``, in words)."""
+        pose = dict(zip(self.indices, self.apples))
+        return HarvestGoal(harvest, [pose[i] for i in indices], indices, why)
 
 
 #: s after an apple's planned release that it is reported in the box (a loaded controller runs a
@@ -322,10 +334,20 @@ REPORT_MARGIN = 0.1
 class HarvestRun:
     """A harvest plan sent to start at ``start`` (s, the controller's clock): which apples are in the
     box by a time, and the harvest's summary when it ends. ``until``: when a harvest that replaced it
-    took over (its apples picked by then are its own)."""
+    took over (its apples picked by then are its own). ``before``: the run of the same goal that this
+    one carries on from (planned again around a changed world): its apples in the box by then count."""
 
-    def __init__(self, plan, start):
-        self.plan, self.start, self.reported, self.until = plan, start, 0, np.inf
+    def __init__(self, plan, start, before=None):
+        self.plan, self.start, self.until, self.before = plan, start, np.inf, before
+        self.reported = 0 if before is None else before.reported
+        self.first = start if before is None else before.first      # when the goal's harvest began
+
+    def _earlier(self):
+        """The apples the runs before this one put in the box, and the apples they skipped."""
+        if self.before is None:
+            return [], []
+        picked, skipped = self.before._earlier()
+        return picked + self.before.plan.picked_by(self.start - self.before.start), skipped + list(self.before.plan.skipped)
 
     def after_apple_in_hand(self, t):
         """The earliest time from ``t`` at which the arm rests in the box with no apple in hand: the end of
@@ -337,14 +359,19 @@ class HarvestRun:
 
     def picked_by(self, t):
         """The apples in the box by ``t`` (by the plan's clock, less REPORT_MARGIN), in picking order."""
+        if self.before is not None and t < self.start:
+            return self.before.picked_by(t)
+        earlier = self._earlier()[0]
         if t >= self.until:                  # replaced: the harvest that took over started after its apple in hand
-            return self.plan.picked_by(self.until - self.start)
-        return self.plan.picked_by(t - self.start - REPORT_MARGIN)
+            return earlier + list(self.plan.picked_by(self.until - self.start))
+        return earlier + list(self.plan.picked_by(t - self.start - REPORT_MARGIN))
 
     def in_hand(self, t):
         """The apple whose cycle runs at ``t`` (and was not finished), or None (also once replaced)."""
         if t >= self.until:
             return None
+        if self.before is not None and t < self.start:
+            return self.before.in_hand(t)
         rel = t - self.start
         return next((a for a in self.plan.apples if a.start <= rel < a.end + REPORT_MARGIN
                      and a not in self.picked_by(t)), None)
@@ -357,13 +384,17 @@ class HarvestRun:
         return new
 
     def summary(self, t, finished):
-        """Figures of the harvest ending at ``t``: all its apples if it ``finished``, else those in the box by then."""
-        picked = self.plan.apples if finished else self.picked_by(t)
-        took = self.plan.plan.duration if finished else max(min(t, self.until) - self.start, 0.0)
-        return dict(picked=len(picked), skipped=len(self.plan.skipped), planned=len(self.plan.apples),
+        """Figures of the harvest ending at ``t``: all its apples if it ``finished``, else those in the box by then
+        (with those of the runs it carries on from)."""
+        earlier, skipped = self._earlier()
+        skipped = sorted(skipped + list(self.plan.skipped), key=lambda x: x.index)
+        picked = earlier + list(self.plan.apples) if finished else self.picked_by(t)
+        end = self.start + self.plan.plan.duration if finished else max(min(t, self.until), self.first)
+        took = end - self.first
+        return dict(picked=len(picked), skipped=len(skipped), planned=len(earlier) + len(self.plan.apples),
                     harvest_time=took, apples_per_hour=3600.0 * len(picked) / took if took > 0 else 0.0,
                     picked_apples=' '.join(str(a.index) for a in picked),
-                    skipped_apples=' '.join(str(s.index) for s in self.plan.skipped))
+                    skipped_apples=' '.join(str(x.index) for x in skipped))
 
     def words(self, t, finished):
         """The summary in words."""

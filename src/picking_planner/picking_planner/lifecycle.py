@@ -65,6 +65,8 @@ class Flight:
     plan: object = None           # the plan's trajectory (time 0 at ``start``), to check its rest again
     regions: tuple = ()           # where touching is allowed along it (its apples)
     stopped: str = ''             # why the planner stopped it at the controller (the world changed)
+    replaces: object = None       # the same goal's plan still running that this one takes over from (a
+                                  # harvest planned again around a changed world): stopped if this one fails
 
     def phase(self, now):
         """``(phase, time_left)`` at controller time ``now``: the segment the plan is in ('sent' or
@@ -114,10 +116,11 @@ class Lifecycle:
         that a burst of goals never queues up plans at the controller (one in flight at a time)."""
         return any(f.state == 'sent' for f in self.flights.values())
 
-    def response(self, key, accepted, wall):
-        """The controller's goal response (at ``wall``); an Ending when it did not take the plan."""
+    def response(self, key, accepted, wall, sent=None):
+        """The controller's goal response (at ``wall``) to the plan ``sent`` (a Flight; None: the goal's
+        newest); an Ending when it did not take the plan."""
         flight = self.flights.get(key)
-        if flight is None:
+        if flight is None or not _newest(flight, sent):
             return None
         self.latency = max(wall - flight.sent, 0.0)
         if not accepted:
@@ -126,21 +129,25 @@ class Lifecycle:
         flight.state = 'accepted'
         return None
 
-    def feedback(self, key, tracking_error):
-        """The controller's feedback: True the first time (the plan now runs)."""
+    def feedback(self, key, tracking_error, sent=None):
+        """The controller's feedback on the plan ``sent`` (None: the goal's newest): True the first time
+        (the plan now runs)."""
         flight = self.flights.get(key)
-        if flight is None:
+        if flight is None or not _newest(flight, sent):
             return False
         flight.tracking_error = tracking_error
         first = flight.state != 'executing'
         flight.state = 'executing'
         return first
 
-    def result(self, key, status, code, text):
-        """The controller's result (``status``: 'succeeded', 'canceled' or 'aborted'): an Ending."""
-        flight = self.flights.pop(key, None)
-        if flight is None:
+    def result(self, key, status, code, text, sent=None):
+        """The controller's result (``status``: 'succeeded', 'canceled' or 'aborted') for the plan ``sent``
+        (None: the goal's newest): an Ending; None for a plan the same goal planned again after it (a
+        harvest around a changed world: the newer plan answers for the goal)."""
+        flight = self.flights.get(key)
+        if flight is None or not _newest(flight, sent):
             return None
+        del self.flights[key]
         if status == 'succeeded':
             return Ending(Outcome.SUCCEEDED, 'the arm is at rest at the goal', code)
         if status == 'canceled' and flight.stopped:
@@ -175,3 +182,8 @@ class Lifecycle:
             del self.flights[key]
             ended.append((flight, Ending(Outcome.ABORTED, why)))
         return ended
+
+
+def _newest(flight, sent):
+    """Whether an answer about the plan ``sent`` (None: any) is about ``flight``, the goal's newest."""
+    return sent is None or sent is flight

@@ -169,3 +169,32 @@ def test_the_apple_in_hand_when_a_harvest_ends_early_is_the_one_whose_cycle_ran(
     assert run.in_hand(10.0 + hp.plan.duration + 1.0) is None          # all in the box, on the way home
     run.until = 10.0 + third.end                        # replaced: the new harvest began once it was in the box
     assert run.in_hand(1e9) is None and [a.index for a in run.picked_by(1e9)] == [a.index for a in hp.apples[:3]]
+
+
+def test_the_rest_of_a_harvest_planned_again_keeps_each_apples_index_in_the_goal(harvest, five):
+    """The apples not started when the world changed, planned again from the box after the apple in hand:
+    labels, times and skips name each apple by its index in the goal, and the run carries on from the
+    first one (what it put in the box counts, each apple reported once)."""
+    from picking_planner.harvest import REPORT_MARGIN, HarvestGoal, HarvestRun
+    apples, hp = five
+    goal = HarvestGoal(harvest, apples)
+    first = hp.apples[0]
+    left = [a.index for a in hp.apples[2:]]
+    rest = goal.rest(harvest, left, 'a branch grew')
+    assert rest.continues and rest.indices == left and not goal.continues
+    q, qd, qdd = hp.plan.trajectory.state_at(hp.apples[1].end)
+    again = rest((q[:6], qd[:6], qdd[:6]), q[6])
+    assert sorted(a.index for a in rest.last.apples) == sorted(left)
+    assert {s.label.split(':')[0] for s in again.segments} <= {f'apple {i}' for i in left} | {'home'}
+    run = HarvestRun(hp, 100.0)
+    assert [a.index for _, a in run.newly_picked(100.0 + first.end + REPORT_MARGIN)] == [first.index]
+    splice = 100.0 + hp.apples[1].end
+    run.until = splice
+    carried = HarvestRun(rest.last, splice, before=run)
+    assert carried.in_hand(splice - 0.1) == hp.apples[1]
+    assert [a.index for _, a in carried.newly_picked(splice + REPORT_MARGIN)] == [hp.apples[1].index]
+    ends = carried.summary(1e9, finished=True)
+    assert ends['picked'] == 5 and ends['planned'] == 5
+    assert sorted(int(i) for i in ends['picked_apples'].split()) == list(range(5))
+    assert ends['harvest_time'] == pytest.approx(splice + rest.last.plan.duration - 100.0)
+    assert len(carried.newly_picked(1e9)) == 3

@@ -87,3 +87,17 @@ def test_a_plan_the_planner_stopped_because_the_world_changed_ends_aborted_with_
     other = life.sent(flight('asked'))
     life.response('asked', True, 10.2)
     assert life.result('asked', 'canceled', 0, '').outcome == Outcome.CANCELED and not other.stopped
+
+
+def test_a_goal_planned_again_answers_through_its_newest_plan_only():
+    """A harvest planned again around a changed world: the plan it replaces runs on until the new one takes
+    over, and the controller's answers about it (its feedback, its result when replaced) end nothing."""
+    life = Lifecycle()
+    old = life.sent(flight('h'))
+    life.response('h', True, 10.1, old)
+    new = life.sent(flight('h', start=101.0, duration=5.0, sent=11.0))
+    assert life.flights['h'] is new
+    assert life.feedback('h', 0.01, old) is False and new.state == 'sent'
+    assert life.result('h', 'aborted', INVALID_GOAL, 'replaced', old) is None and life.flights['h'] is new
+    assert life.response('h', True, 11.1, new) is None and new.state == 'accepted'
+    assert life.result('h', 'succeeded', 0, '', new).outcome == Outcome.SUCCEEDED and not life.flights
