@@ -261,7 +261,8 @@ class GoalFlow:
         left = [a.index for a in run.plan.apples if run.start + a.start >= splice - 1e-9]
         if now + contact.time <= splice or not left:
             return None
-        rest = flight.goal.plan.rest(Harvest(PickCycle(self.planner, self.pick, self.world.checker)), left, changed)
+        rest = flight.goal.plan.rest(Harvest(PickCycle(self.planner, self.pick, self.world.checker)), left, changed,
+                                     splice)
         return replace(flight.goal, plan=rest)
 
     def _cancel(self, handle):
@@ -364,8 +365,12 @@ class GoalFlow:
             ref = self._reference()
             for _ in range(4):
                 t_start = self._ros_now() + delay
-                start = policy.start_state(self._after_apple_in_hand(t_start) if kind == 'harvest' else t_start,
-                                           ref, measured[0])
+                if kind == 'harvest':
+                    t_start = self._after_apple_in_hand(t_start)
+                    if t_start > getattr(goal.plan, 'after', np.inf) + 1e-6:
+                        # (The rest of a harvest planned again: the running plan starts another apple by then.)
+                        raise ValueError('it could not be planned in time to take over after the apple in hand')
+                start = policy.start_state(t_start, ref, measured[0])
                 # The gripper as the plan running then leaves it (the reference carries the arm's joints only).
                 gripper = policy.planned_joint(start.time, GRIPPER_JOINT) if start.carries_on else None
                 plan = goal.plan(start.state, measured[1] if gripper is None else gripper)

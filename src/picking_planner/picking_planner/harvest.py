@@ -309,21 +309,23 @@ class HarvestGoal:
     harvest of ``apples`` (their ``indices`` in the goal: by default their places) from ``start``;
     the :class:`HarvestPlan` it made is kept in ``last``."""
 
-    def __init__(self, harvest, apples, indices=None, why=''):
+    def __init__(self, harvest, apples, indices=None, why='', after=np.inf):
         self.harvest, self.apples, self.last = harvest, list(apples), None
         self.indices = list(range(len(self.apples))) if indices is None else list(indices)
-        self.why = why                      # the rest of a running harvest planned again (see rest): why
+        # The rest of a running harvest planned again (see rest): why, and the latest start (the end of the
+        # apple in hand; any later, the running plan has started one of these apples).
+        self.why, self.after = why, after
         self.continues = bool(why)
 
     def __call__(self, start, gripper=None):
         self.last = self.harvest.plan(start, self.apples, gripper_start=gripper, indices=self.indices)
         return self.last.plan
 
-    def rest(self, harvest, indices, why):
-        """The same goal's apples ``indices`` (not started yet), to be planned with ``harvest`` (a new
-        world's): a harvest planned again around what changed (``why``, in words)."""
+    def rest(self, harvest, indices, why, after):
+        """The same goal's apples ``indices`` (not started by ``after``, s), to be planned with ``harvest``
+        (a new world's) to start no later: a harvest planned again around what changed (``why``, in words)."""
         pose = dict(zip(self.indices, self.apples))
-        return HarvestGoal(harvest, [pose[i] for i in indices], indices, why)
+        return HarvestGoal(harvest, [pose[i] for i in indices], indices, why, after)
 
 
 #: s after an apple's planned release that it is reported in the box (a loaded controller runs a

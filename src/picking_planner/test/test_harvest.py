@@ -180,8 +180,8 @@ def test_the_rest_of_a_harvest_planned_again_keeps_each_apples_index_in_the_goal
     goal = HarvestGoal(harvest, apples)
     first = hp.apples[0]
     left = [a.index for a in hp.apples[2:]]
-    rest = goal.rest(harvest, left, 'a branch grew')
-    assert rest.continues and rest.indices == left and not goal.continues
+    rest = goal.rest(harvest, left, 'a branch grew', 100.0 + hp.apples[1].end)
+    assert rest.continues and rest.indices == left and not goal.continues and goal.after == np.inf
     q, qd, qdd = hp.plan.trajectory.state_at(hp.apples[1].end)
     again = rest((q[:6], qd[:6], qdd[:6]), q[6])
     assert sorted(a.index for a in rest.last.apples) == sorted(left)
