@@ -179,21 +179,8 @@ def test_a_cloud_that_comes_mid_harvest_stops_it_and_the_apples_in_the_box_are_r
     picked by then are reported, the one in hand as failed, nothing touched."""
     stack, client, contacts = arm
     apples = [T for T in synthetic_tree(12, seed=7) if np.linalg.norm(T[:3, 3] - A) > 0.25][:3]
-    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
-    harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
-    client.wait_for(lambda: pub.get_subscription_count() > 0 and harvest.get_subscription_count() > 0, 10.0,
-                    'the planner on canopy_points and harvest_targets')
-    tree = PoseArray(poses=[make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
-                            for T in apples])
-    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
-    key, seen = stamp_key(tree.header.stamp), len(contacts)
-    mark = client.mark()
-    client.send(harvest, tree)
-
-    def of_harvest(state=None, apple_state=None):
-        return [status_values(m) | {'message': m.message} for m in client.answers(mark)
-                if status_values(m).get('goal') == key and (state is None or status_values(m).get('state') == state)
-                and (apple_state is None or status_values(m).get('apple_state') == apple_state)]
+    seen = len(contacts)
+    pub, of_harvest = send_harvest(client, apples)
     first = client.wait_for(lambda: of_harvest(apple_state='picked'), 60.0, 'the first apple in the box')[0]
     # The canopy closes round the two apples left (whichever the harvest's order takes next).
     left = [T[:3, 3] for i, T in enumerate(apples) if i != int(first['apple'])]
@@ -219,21 +206,8 @@ def test_a_cloud_that_blocks_only_apples_not_started_has_the_rest_of_the_harvest
             apples.append(T)
     apples = apples[:5]
     assert len(apples) == 5
-    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
-    harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
-    client.wait_for(lambda: pub.get_subscription_count() > 0 and harvest.get_subscription_count() > 0, 10.0,
-                    'the planner on canopy_points and harvest_targets')
-    tree = PoseArray(poses=[make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
-                            for T in apples])
-    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
-    key, seen = stamp_key(tree.header.stamp), len(contacts)
-    mark = client.mark()
-    client.send(harvest, tree)
-
-    def of_harvest(state=None, apple_state=None):
-        return [status_values(m) | {'message': m.message} for m in client.answers(mark)
-                if status_values(m).get('goal') == key and (state is None or status_values(m).get('state') == state)
-                and (apple_state is None or status_values(m).get('apple_state') == apple_state)]
+    seen = len(contacts)
+    pub, of_harvest = send_harvest(client, apples)
     accepted = client.wait_for(lambda: of_harvest('accepted'), 60.0, 'the harvest accepted')[0]
     order = list(dict.fromkeys(int(part.split(':')[0].split()[1]) for part in accepted['segments'].split('; ')
                                if part.startswith('apple ')))
@@ -255,6 +229,27 @@ def test_a_cloud_that_blocks_only_apples_not_started_has_the_rest_of_the_harvest
         assert started(contacts, seen) == []
     finally:
         clear_canopy(stack, client, pub)
+
+
+def send_harvest(client, apples):
+    """Send a harvest of ``apples`` (4x4 grasp poses); ``(canopy publisher, of_harvest)``, where
+    ``of_harvest(state, apple_state)`` lists the harvest's statuses so far (values and message)."""
+    pub = client.create_publisher(PointCloud2, 'canopy_points', 10)
+    harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
+    client.wait_for(lambda: pub.get_subscription_count() > 0 and harvest.get_subscription_count() > 0, 10.0,
+                    'the planner on canopy_points and harvest_targets')
+    tree = PoseArray(poses=[make_pose(T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist())
+                            for T in apples])
+    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
+    key = stamp_key(tree.header.stamp)
+    mark = client.mark()
+    client.send(harvest, tree)
+
+    def of_harvest(state=None, apple_state=None):
+        return [status_values(m) | {'message': m.message} for m in client.answers(mark)
+                if status_values(m).get('goal') == key and (state is None or status_values(m).get('state') == state)
+                and (apple_state is None or status_values(m).get('apple_state') == apple_state)]
+    return pub, of_harvest
 
 
 def publish_until(client, pub, msg, predicate, timeout, what):
