@@ -103,6 +103,8 @@ def time_optimal(q0, qf, max_velocity, max_acceleration, max_jerk, v0=None, a0=N
         if traj.duration <= 0.0:                # already there, at rest: nothing to move
             return hold(qf, max(float(min_duration), NO_MOVE))
         breaks, coeffs = _pieces(traj, n)
+        if breaks.size < 2:                     # a move too short for two distinct breaks: nothing to move
+            return hold(qf, max(float(min_duration), NO_MOVE))
         # _ending_at's correction jerks up to 60 e / T^3: on a move of a few ms, at the jerk limit
         # already, a few nanoradians of e went beyond it. Planned again with that much room left.
         error = qf - _end_position(breaks, coeffs)
