@@ -279,7 +279,9 @@ class ControllerNode(Node):
         ns = time.time_ns()                      # the controller's clock (see now())
         now = ns * 1e-9
         with self.lock:
+            delayed = self.core.delayed
             events = self.core.advance(now)      # a stall delays the trajectory: before the feedback check
+            later = self.core.delayed != delayed
         state = self.states.take()
         if state is not self._last_state:
             self._last_state = state
@@ -290,6 +292,8 @@ class ControllerNode(Node):
             events += limited
         if events:
             self._report(events)
+        if later:                                # its sender learns at once how late the plan now runs
+            self._publish_feedback()
         if ref is not None:
             if not self._commanding:             # the loop figures count from the first command
                 self._commanding = True

@@ -263,7 +263,7 @@ class GoalFlow:
             return None
         rest = flight.goal.plan.rest(Harvest(PickCycle(self.planner, self.pick, self.world.checker)), left, changed,
                                      splice)
-        return replace(flight.goal, plan=rest)
+        return replace(flight.goal, plan=rest, came=self._now())     # (it may wait: from now)
 
     def _cancel(self, handle):
         """A goal in flight is canceled at the controller (which brakes the arm to rest, then
@@ -370,7 +370,8 @@ class GoalFlow:
                     if t_start > getattr(goal.plan, 'after', np.inf) + 1e-6:
                         # (The rest of a harvest planned again: the running plan starts another apple by then.)
                         raise ValueError('it could not be planned in time to take over after the apple in hand')
-                start = policy.start_state(t_start, ref, measured[0])
+                # A harvest replacing a running one starts in the box after the apple in hand: exactly there.
+                start = policy.start_state(t_start, ref, measured[0], exact=kind == 'harvest' and bool(self._harvests))
                 # The gripper as the plan running then leaves it (the reference carries the arm's joints only).
                 gripper = policy.planned_joint(start.time, GRIPPER_JOINT) if start.carries_on else None
                 plan = goal.plan(start.state, measured[1] if gripper is None else gripper)
@@ -389,7 +390,7 @@ class GoalFlow:
                 if old is not None and old is not goal:
                     self._end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
                 return
-            self._end(goal, Ending(Outcome.REFUSED, f'{exc} (waited {WAIT_LIMIT:g} s)'))
+            self._refuse(goal, f'{exc} (waited {WAIT_LIMIT:g} s)')
             return
         except (ValueError, Unreachable) as exc:
             self._refuse(goal, str(exc))

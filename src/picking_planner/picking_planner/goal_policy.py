@@ -161,7 +161,7 @@ class GoalPolicy:
         return (self.start_delay * 2 ** goal.attempt
                 + 1.5 * self.planning_time.get(goal.kind, FIRST_PLANNING[goal.kind]))
 
-    def start_state(self, t_start, reference, measured_q):
+    def start_state(self, t_start, reference, measured_q, exact=False):
         """Where a plan starting at ``t_start`` starts: a :class:`Start`.
 
         The plan is stamped to start at ``t_start``, so planning and delivery time never make
@@ -173,9 +173,10 @@ class GoalPolicy:
         active at the start time, even across its end. Else the reference extrapolated from its
         stamp (:func:`predict_reference`: another client's trajectory, a catch-up lead-in, a
         stalled controller), held within the limits; :class:`Unsettled` when that reference moves
-        while one of our plans runs and ``t_start`` lies more than EXTRAPOLATION_LIMIT ahead (a
-        controller that stalled runs the plan late, and says by how much in its next feedback:
-        see :meth:`runs_late`). Without a reference, ``measured_q`` at rest.
+        while one of our plans runs and ``t_start`` lies more than EXTRAPOLATION_LIMIT ahead, or
+        at all when the start must be ``exact`` (a replacing harvest's, in the box after the apple
+        in hand): a controller that stalled runs the plan late, and says by how much in its
+        feedback (see :meth:`runs_late`). Without a reference, ``measured_q`` at rest.
         ``carry_from``: when the plan carries on from plans that start after the reference's
         stamp (the controller may not run them: see :func:`carried_points`), where to carry them
         from (:func:`carry_start`); else None.
@@ -189,7 +190,8 @@ class GoalPolicy:
                 return Start(tuple(x[:n].copy() for x in plan.trajectory.state_at(t_start - plan.start)),
                              'reference', t_start, carry_start(self.sent, stamp, t_start), carries_on=True)
             dt = max(0.0, t_start - stamp) if stamp > 0 else 0.0
-            if (dt > EXTRAPOLATION_LIMIT and then is not None and stamp - then.start < then.trajectory.duration
+            if ((exact or dt > EXTRAPOLATION_LIMIT) and then is not None
+                    and stamp - then.start < then.trajectory.duration
                     and (np.abs(qd).max() > 1e-6 or np.abs(qdd).max() > 1e-6)):
                 raise Unsettled(f"the controller's reference is off the plan it runs (delayed by a stall it has not "
                                 f"reported yet?): where the arm is {dt:.2f} s ahead is unknown")
