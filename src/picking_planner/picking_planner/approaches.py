@@ -50,6 +50,10 @@ class Blocked(Unreachable):
     """No clear cycle: the reason names the obstacle, where and when (a refused apple, as Unreachable)."""
 
 
+class BrakeBlocked(Blocked):
+    """The arm would hit something while it brakes from where the plan starts, before any way around."""
+
+
 @dataclass(frozen=True)
 class Approach:
     """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad);

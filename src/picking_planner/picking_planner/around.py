@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .approaches import Blocked
+from .approaches import Blocked, BrakeBlocked
 from .planning.joint_path import NoPath, clear_edge, rrt_connect
 
 #: The via-point method that times a pose goal's move through a detour, for each pose method.
@@ -73,7 +73,7 @@ def _around(planner, checker, stop, tries, method, label, contact):
     colliding = checker.colliding
     braking = None if stop is None else checker.check(stop)
     if braking is not None:
-        raise Blocked(f'the plan would hit an obstacle while it brakes: {braking}')
+        raise BrakeBlocked(f'the plan would hit an obstacle while it brakes: {braking}')
     why = 'no collision-free joint path around it'
     for qs in tries:
         points = [qs[0]]

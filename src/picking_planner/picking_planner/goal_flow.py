@@ -374,7 +374,7 @@ class GoalFlow:
                 start = policy.start_state(t_start, ref, measured[0], exact=kind == 'harvest' and bool(self._harvests))
                 # The gripper as the plan running then leaves it (the reference carries the arm's joints only).
                 gripper = policy.planned_joint(start.time, GRIPPER_JOINT) if start.carries_on else None
-                plan = goal.plan(start.state, measured[1] if gripper is None else gripper)
+                plan = policy.plan(goal, start, measured[1] if gripper is None else gripper)
                 if policy.on_time(self._ros_now(), start):
                     break
                 # (Allowing as long again as planning took for the rest: building the message, sending it.)

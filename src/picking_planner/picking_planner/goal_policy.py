@@ -14,6 +14,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from .approaches import BrakeBlocked
 from .planning import feasible_start
 from .sent_plans import SentPlan, carried_points, carry_start, forget_before, plan_active, predict_reference
 
@@ -200,6 +201,21 @@ class GoalPolicy:
             raise ValueError('no joint_states received yet: the planner does not know where the arm is')
         q = np.asarray(measured_q, float)
         return Start((q, np.zeros_like(q), np.zeros_like(q)), 'measured', t_start)
+
+    @staticmethod
+    def plan(goal, start, gripper):
+        """``goal``'s plan from ``start`` with the gripper at ``gripper``. A plan whose arm would hit
+        something while it brakes from ``start`` waits (:class:`Unsettled`) when ``start`` is only the
+        controller's reference extrapolated: that guess is no ground to refuse the goal (the
+        controller of a loaded machine leads into late plans its own way, and its reference can be
+        extrapolated far from where the arm goes); from a start known, the goal is refused."""
+        try:
+            return goal.plan(start.state, gripper)
+        except BrakeBlocked as exc:
+            if start.source == 'reference' and not start.carries_on:
+                raise Unsettled(f"{exc}, from the controller's reference extrapolated: waiting for it to "
+                                'settle') from exc
+            raise
 
     def planned_joint(self, t, name):
         """The position of joint ``name`` in the sent plan that runs at ``t`` (the gripper, which the

@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from picking_planner import around
-from picking_planner.approaches import Blocked
+from picking_planner.approaches import Blocked, BrakeBlocked
 from picking_planner.collision import CollisionChecker, Scene
 from picking_planner.collision.scene import rod
 from picking_planner.harvest import synthetic_tree
@@ -103,3 +103,14 @@ def test_a_path_through_via_points_goes_around_a_wire_between_them(planner, caps
     assert near == sorted(near) and all(np.linalg.norm(tool[i] - P[:3, 3]) < 1e-4 for i, P in zip(near, poses))
     with pytest.raises(Blocked, match='keeps its tool path'):
         around.plan_path(planner, checker, START, poses, 'line')
+
+
+def test_a_moving_start_whose_brake_would_hit_a_wire_says_so_before_any_way_around(planner, caps):
+    """The brake from a moving start is the one part no detour can change: its contact is its own
+    error (the goal policy tells a guessed start from a known one by it)."""
+    start = (HOME, np.array([0.0, 0.8, -0.8, 0.0, 0.0, 0.0]), 0 * HOME)
+    stop, _ = planner.come_to_rest(start)
+    brake = type('Plan', (), {'duration': stop.duration, 'trajectory': stop})
+    checker = CollisionChecker(caps, wire_across(planner, brake))
+    with pytest.raises(BrakeBlocked, match='while it brakes: wrist_3_link .* wire'):
+        around.plan_pose(planner, checker, start, goal(), 'quintic')

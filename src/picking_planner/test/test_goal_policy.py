@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from picking_planner import trajectory
+from picking_planner.approaches import Blocked, BrakeBlocked
 from picking_planner.goal_policy import (DELIVERY, FIRST_PLANNING, LATE_REPLANS, REPEAT_WINDOW, WAIT_LIMIT, Goal,
                                          GoalPolicy, Start, Unsettled)
 
@@ -107,6 +108,26 @@ def test_a_plan_the_controller_runs_late_is_moved_so_that_starts_far_ahead_stay_
     assert policy.runs_late('12.000000000', 12.6, 0.3, names, HOME) == 0.0
     assert policy.runs_late('10.000000000', 11.6, 0.0, names, HOME) == 0.0
     assert policy.sent[0].start == pytest.approx(10.3)
+
+
+def test_a_brake_into_something_from_a_guessed_start_waits_and_from_a_known_one_is_refused(policy):
+    def blocked(why):
+        def plan(state, gripper):
+            raise why
+        return Goal('pose', '12.000000000', plan, 0.0)
+    moving = (HOME, 0 * HOME + 0.5, 0 * HOME)
+    guessed = Start(moving, 'reference', 10.0)
+    with pytest.raises(Unsettled, match="while it brakes: .*extrapolated"):
+        policy.plan(blocked(BrakeBlocked('the plan would hit an obstacle while it brakes: x')), guessed, 0.09)
+    # From a plan of ours the controller follows, or from the arm measured: refused as it is.
+    for known in (guessed._replace(carries_on=True), Start(moving, 'measured', 10.0)):
+        with pytest.raises(BrakeBlocked):
+            policy.plan(blocked(BrakeBlocked('while it brakes')), known, 0.09)
+    # Any other obstacle (the way to the goal, the goal itself) is refused from a guess too.
+    with pytest.raises(Blocked):
+        policy.plan(blocked(Blocked('the plan would hit an obstacle: y')), guessed, 0.09)
+    assert policy.plan(Goal('pose', '1.000000000', lambda state, gripper: (state, gripper), 0.0), guessed,
+                       0.09) == (moving, 0.09)
 
 
 def test_a_late_plan_is_planned_again_up_to_the_limit_then_answered_as_not_run(policy):
