@@ -58,6 +58,7 @@ class Flight:
     trajectory: str = ''          # the plan's stamp, as the controller names it
     state: str = 'sent'           # sent -> accepted -> executing
     superseded: bool = False      # a newer plan of ours was sent after it
+    overtaken: bool = False       # ... and the controller accepted that one (it takes over from this)
     tracking_error: float = 0.0   # rad, the controller's newest feedback
     handle: object = None         # the controller's goal handle, once accepted
     cancel: bool = False          # its client asked to cancel it
@@ -127,6 +128,9 @@ class Lifecycle:
             self.flights.pop(key)
             return Ending(Outcome.REFUSED, 'the controller did not accept the plan (its goal was rejected)')
         flight.state = 'accepted'
+        for other in self.flights.values():
+            if other is not flight and other.sent <= flight.sent:
+                other.overtaken = True
         return None
 
     def feedback(self, key, tracking_error, sent=None):
@@ -169,7 +173,8 @@ class Lifecycle:
     def overdue(self, wall, now):
         """Flights the controller left unanswered too long, removed, with an Ending each: no
         goal response RESPONSE_LIMIT s after sending and by the plan's start, or no result
-        RESULT_MARGIN s after the plan's end (controller time ``now``)."""
+        RESULT_MARGIN s after the plan's end (controller time ``now``): aborted, or superseded when
+        the controller accepted a newer plan of ours after it."""
         ended = []
         for key, flight in list(self.flights.items()):
             if flight.state == 'sent' and wall - flight.sent > RESPONSE_LIMIT and now > flight.start:
@@ -180,7 +185,12 @@ class Lifecycle:
             else:
                 continue
             del self.flights[key]
-            ended.append((flight, Ending(Outcome.ABORTED, why)))
+            if flight.overtaken:
+                # (A controller flooded with goals may never answer one a newer accepted plan took over from.)
+                why = f'superseded: a newer goal took the arm over ({why})'
+                ended.append((flight, Ending(Outcome.SUPERSEDED, why)))
+            else:
+                ended.append((flight, Ending(Outcome.ABORTED, why)))
         return ended
 
 

@@ -68,6 +68,19 @@ def test_an_unanswered_plan_ends_aborted_with_the_reason():
     assert [f.goal.key for f, _ in life.overdue(10.0 + RESPONSE_LIMIT + 11.0, 120.5)] == ['ahead']
 
 
+def test_a_plan_left_without_a_result_after_a_newer_one_was_accepted_ends_superseded():
+    life = Lifecycle()
+    life.sent(flight('old', sent=10.0)).state = 'executing'
+    life.sent(flight('refused', sent=10.5))
+    life.response('refused', False, 10.6)                      # not taken: the old one may still run
+    life.sent(flight('new', start=101.0, sent=11.0))
+    assert not life.flights['old'].overtaken
+    life.response('new', True, 11.2)                           # taken: it took over from the old one
+    ended = life.overdue(20.0, 102.0 + RESULT_MARGIN + 0.1)
+    assert [(f.goal.key, e.outcome) for f, e in ended] == [('old', Outcome.SUPERSEDED)]
+    assert 'no result' in ended[0][1].message and list(life.flights) == ['new']
+
+
 def test_one_plan_at_a_time_waits_for_the_controllers_answer():
     life = Lifecycle()
     assert not life.unanswered()
