@@ -36,6 +36,7 @@ RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 #: The planner's goal QoS (reliable, keep last 10 000; see picking_planner.node.BURST): a goal
 #: lost in transport during a flood must still be in our history when the planner asks again.
 BURST = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
+RENEW_AFTER = 3        # goal sends unanswered before the client sends it on a new publisher too
 STATUSES = QoSProfile(depth=40_000, reliability=ReliabilityPolicy.RELIABLE)
 ARM_JOINTS = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
               'wrist_3_joint']
@@ -179,16 +180,36 @@ class Client(Node):
     def planner_answer(self, since, timeout=20.0, resend_every=2.0):
         """The planner's first answer about the last goal sent, since ``since``. The last goal is
         sent again (the planner answers a repeat without planning it twice) every ``resend_every``
-        s without an answer: a goal sent as discovery completes can be lost."""
+        s without an answer: a goal sent as discovery completes can be lost. After RENEW_AFTER
+        sends unanswered it goes out on a publisher made anew as well (a restarted planner has
+        stayed unmatched by the old one's writer for longer than the timeout on a loaded machine)."""
         end = time.monotonic() + timeout
+        sends = 1
         while True:
             try:
                 return self.wait_for(lambda: self.answers(since)[:1] and self.answers(since)[0],
                                      min(resend_every, max(end - time.monotonic(), 0.0)), 'planner_status')
             except AssertionError:
-                if time.monotonic() >= end or self._goal is None:
-                    raise AssertionError(f'timed out after {timeout} s waiting for planner_status') from None
-                self._goal[0].publish(self._goal[1])
+                publisher, msg = self._goal or (None, None)
+                if time.monotonic() >= end or publisher is None:
+                    seen = '' if publisher is None else (
+                        f' ({publisher.get_subscription_count()} readers of {publisher.topic_name}, '
+                        f'{self._planner_sub.get_publisher_count()} writers of planner_status)')
+                    raise AssertionError(f'timed out after {timeout} s waiting for planner_status{seen}') from None
+                if sends % RENEW_AFTER == 0:
+                    publisher = self._renewed(publisher)
+                    self._goal = (publisher, msg)
+                publisher.publish(msg)
+                sends += 1
+
+    def _renewed(self, publisher):
+        """A new publisher like ``publisher``, in its place among this client's attributes (the old
+        one is left alone: destroying it would race with the spinning executor)."""
+        fresh = self.create_publisher(publisher.msg_type, publisher.topic, publisher.qos_profile)
+        for name, value in list(vars(self).items()):
+            if value is publisher:
+                setattr(self, name, fresh)
+        return fresh
 
     def controller_event(self, since, text, timeout=30.0):
         def find():
