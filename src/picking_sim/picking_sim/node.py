@@ -47,6 +47,21 @@ WITNESS_RATE = 20.0
 #: s a servo loop woken late lets the process's middleware threads take in the commands sent
 #: meanwhile before it catches up along the newest.
 CATCH_UP_YIELD = 0.002
+#: s more a servo woken late while following commands waits for one sent during the stall: the
+#: middleware may take longer to take in what came (held instead, the arm lagged the controller's
+#: reference by the stall and it aborted the goal on its tolerance).
+CATCH_UP_WAIT = 0.02
+
+
+def newest_since(take, since, wait, poll=0.001):
+    """The newest message ``take()`` gives that is stamped after ``since`` (s), waiting up to ``wait``
+    s for one; else the newest there is (older, or None)."""
+    end = time.monotonic() + wait
+    while True:
+        msg = take()
+        if (msg is not None and seconds(msg.header.stamp) > since) or time.monotonic() >= end:
+            return msg
+        time.sleep(poll)
 
 
 class SimNode(Node):
@@ -154,6 +169,9 @@ class SimNode(Node):
         t_deadline = deadline + self._clock_offset
         dt = self.servo.dt
         due = periods * STEPS_PER_WAKE
+        if periods > 1 and self._commanded:
+            # Woken late while following commands: the controller went on commanding meanwhile.
+            newest_since(self.commands.take, t_deadline - self.servo.command_timeout, CATCH_UP_WAIT)
         with self.lock:
             t_state = t_deadline + dt - due * dt
             self._apply_newest_command(t_state)

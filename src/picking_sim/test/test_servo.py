@@ -143,3 +143,18 @@ def test_bad_commands_are_refused():
         servo.command([np.nan, 0.0])
     with pytest.raises(ValueError):
         servo.command([0.0])
+
+
+def test_a_servo_woken_late_waits_briefly_for_a_command_sent_during_its_stall():
+    from types import SimpleNamespace
+    from builtin_interfaces.msg import Time
+    from picking_sim.node import newest_since
+
+    def msg(t):
+        return SimpleNamespace(header=SimpleNamespace(stamp=Time(sec=int(t), nanosec=int(round(t % 1 * 1e9)))))
+    old, fresh = msg(10.0), msg(10.3)
+    arrivals = iter([old, old, old, fresh])           # the middleware takes the new one in a little later
+    assert newest_since(lambda: next(arrivals), 10.25, 1.0) is fresh
+    # None comes (the controller stalled too): the newest there is, after the wait.
+    assert newest_since(lambda: old, 10.25, 0.005) is old
+    assert newest_since(lambda: None, 10.25, 0.0) is None
