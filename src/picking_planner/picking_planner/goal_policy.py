@@ -59,11 +59,16 @@ class Start(NamedTuple):
     carry_from: float | None = None   # where the points carry the sent plans from (None: nothing to carry)
     carries_on: bool = False      # from a sent plan the reference follows, at ``time``
 
+    @property
+    def guessed(self):
+        """True for the controller's reference extrapolated: neither a plan of ours it follows nor the arm measured."""
+        return self.source == 'reference' and not self.carries_on
+
     def words(self):
         """What the plan started from, in words (for a refusal)."""
         if self.carries_on:
             return 'the plan running then'
-        return "the controller's reference, extrapolated" if self.source == 'reference' else 'the measured state'
+        return "the controller's reference, extrapolated" if self.guessed else 'the measured state'
 
 
 @dataclass
@@ -212,7 +217,7 @@ class GoalPolicy:
         try:
             return goal.plan(start.state, gripper)
         except BrakeBlocked as exc:
-            if start.source == 'reference' and not start.carries_on:
+            if start.guessed:
                 raise Unsettled(f"{exc}, from the controller's reference extrapolated: waiting for it to "
                                 'settle') from exc
             raise
