@@ -1,5 +1,5 @@
 # make demo   the main job: the pick-and-place demo (creates .venv on first use)
-# make test   colcon build + colcon test of the packages, then the system tests in test/
+# make test   colcon build + colcon test of the packages, then the repository's tests in test/ (system tests in test/system/)
 # make test-load  the end-to-end system tests again, beside four CPU-bound processes
 # make bench  the speed benchmarks (installs the optional peers to compare against)
 # make fuzz   the long run of the arbitrary-input tests (10 000 examples per function)
@@ -33,8 +33,8 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 	$(BIN)/python tools/build_interfaces.py --build-dir build/interfaces $(INTERFACES)
 	# Compile the IK, forward kinematics and trajectory kernels into numba's cache now, not in the
 	# first node that plans.
-	$(BIN)/python -c 'from picking_planner.kinematics import ArmModel; ArmModel.from_urdf("config/picking_arm.urdf").load_ik()'
-	$(BIN)/python -c 'import picking_planner.trajectory.fast_sample'
+	$(BIN)/python -c 'from picking_core.kinematics import ArmModel; from picking_description import default_urdf; ArmModel.from_urdf(default_urdf()).load_ik()'
+	$(BIN)/python -c 'import picking_core.trajectory.fast_sample'
 	touch $@
 
 # The pick-and-place cycle of Table 1 through the real nodes, then the paper's examples offline.
@@ -66,7 +66,7 @@ test-load: $(STAMP)
 # The long run of the arbitrary-input (hypothesis) tests: 10 000 examples per function.
 fuzz: $(STAMP)
 	$(BIN)/python -m pytest -q -m fuzz --hypothesis-profile=long --import-mode=importlib src/picking_common/test \
-		src/picking_planner/test src/picking_controller/test src/picking_sim/test
+		src/picking_core/test src/picking_controller/test src/picking_sim/test
 
 # docs/parameters.md from the nodes' parameter tables.
 docs: $(STAMP)

@@ -10,13 +10,12 @@ import coal
 import numpy as np
 
 from harness import fmt_time, median
-from picking_planner.collision import Canopy, CollisionChecker
-from picking_planner.collision.scene import frames_along, transform
-from picking_planner.kinematics import Unreachable
-from picking_planner.kinematics.capsules import ArmCapsules
-from picking_planner.orchard import orchard_tree
-from picking_planner.pick_cycle import PickCycle
-from picking_planner.platform import load_harvest
+from picking_core.collision import Canopy, CollisionChecker
+from picking_core.collision.scene import frames_along, transform
+from picking_core.kinematics import Unreachable
+from picking_core.kinematics.capsules import ArmCapsules
+from picking_core.pick_cycle import PickCycle
+from picking_bringup.shipped import shipped_harvest, shipped_orchard
 
 #: The canopy: the orchard tree's cloud, filled up to this many points with leaves on its fruiting wall.
 CLOUD_POINTS = 20_000
@@ -58,10 +57,10 @@ def _rate(fn, n, repeats=3):
 
 
 def checks():
-    harvest = load_harvest()
+    harvest = shipped_harvest()
     arm = harvest.cycle.arm
     capsules = ArmCapsules.from_arm(arm)
-    orchard = orchard_tree(16, seed=3)
+    orchard = shipped_orchard(16, seed=3)
     rng = np.random.default_rng(0)
     leaves = rng.uniform([0.85, -0.6, 0.3], [1.0, 0.6, 1.0], (CLOUD_POINTS - len(orchard.cloud), 3))
     canopy = Canopy(np.vstack([orchard.cloud, leaves]))
@@ -108,7 +107,7 @@ def blocked_apples(harvest, repeats=3):
         plan = PickCycle(planner, cycle.s, checker).plan(start, T)
         return time.perf_counter() - t0, plan
     for seed in SEEDS:
-        orchard = orchard_tree(16, seed=seed)
+        orchard = shipped_orchard(16, seed=seed)
         checker = CollisionChecker(capsules, orchard.scene, Canopy(orchard.cloud))
         if seed == SEEDS[0]:
             # Untimed first: a running planner has made its first plans (what a process does once, such as

@@ -1,5 +1,5 @@
 """Row 8: a tree harvested by one arm (apples an hour planned and run, the order against the order given) and
-by 2, 3 and 4 arms of a platform (config/platform.yaml): the speed-up, planned with picking-harvester's core."""
+by 2, 3 and 4 arms of a platform (picking_description/platforms/platform.yaml): the speed-up, planned with picking-harvester's core."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from harness import fmt_time, median
-from picking_planner.harvest import best_order, synthetic_tree
-from picking_planner.platform import Coordinator, Platform, load_harvest
+from picking_core.harvest import best_order, synthetic_tree
+from picking_bringup.shipped import shipped_harvest
+from picking_core.platform import Coordinator, Platform
+from picking_description import platform_path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: A dense tree: this many apples 8 cm apart in the canopy in front of the arm, from this seed.
@@ -26,7 +28,7 @@ RUN_APPLES = 20
 
 def _harvest():
     """The shipped planner and cycle settings (config/planner.yaml, config/pick_cycle.yaml)."""
-    return load_harvest(ROOT / 'config')
+    return shipped_harvest()
 
 
 def planned(repeats=5):
@@ -107,13 +109,13 @@ PER_ARM, PLATFORM_SEED = 20, 1
 
 
 def platforms():
-    """Rows 8: one tree shared by 2, 3 and 4 arms (the layouts of config/platform.yaml), each tree as many
+    """Rows 8: one tree shared by 2, 3 and 4 arms (the layouts of picking_description/platforms/platform.yaml), each tree as many
     arms wide at the same density, split and planned apart by the coordinator's core: apples an hour
     against one arm's on its own tree of as many apples an arm, and the closest approach between arms."""
     rows, base = [], None
     for n, layout in enumerate(('one', 'two', 'three', 'four'), start=1):
-        platform = Platform.from_yaml(ROOT / 'config' / 'platform.yaml', layout)
-        coordinator = Coordinator.from_platform(platform, ROOT / 'config')
+        platform = Platform.from_yaml(platform_path(), layout)
+        coordinator = Coordinator.from_platform(platform, shipped_harvest)
         t0 = time.perf_counter()
         schedule = coordinator.schedule(platform.tree(PER_ARM * n, seed=PLATFORM_SEED))
         took = time.perf_counter() - t0

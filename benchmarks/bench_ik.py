@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 from harness import fmt_time, median, p99, time_calls
-from picking_planner.kinematics import ArmModel
+from picking_core.kinematics import ArmModel
+from picking_description import default_urdf
 
-CONFIG = Path(__file__).resolve().parents[1] / 'config'
 N_SINGLE = 200
 N_BATCH = 10_000
 
@@ -23,7 +22,7 @@ def _puma():
 
 
 def run(repeats=15):
-    arm = ArmModel.from_urdf(CONFIG / 'picking_arm.urdf')
+    arm = ArmModel.from_urdf(default_urdf())
     rng = np.random.default_rng(11)
     Q = rng.uniform(arm.lower, arm.upper, (N_BATCH, arm.dof))
     T = arm.fk(Q)

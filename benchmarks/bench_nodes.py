@@ -26,7 +26,7 @@ from trajectory_msgs.msg import JointTrajectory
 from harness import fmt_time
 from picking_common.run import SWITCH_INTERVAL
 from picking_common.topics import BURST, LatestMessage
-from picking_planner.cli.stack import Stack, stop_all
+from picking_bringup.stack import Stack, stop_all
 
 ROOT = Path(__file__).resolve().parents[1]
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)

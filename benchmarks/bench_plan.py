@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from harness import fmt_time, median, p99, time_calls
-from picking_planner.analysis import corner_path, pick_corners
-from picking_planner.kinematics import ArmModel, pose_matrix
-from picking_planner.pick_cycle import PickCycle, PickSettings
-from picking_planner import trajectory
-from picking_planner.planning import Planner, PlannerSettings
+from picking_core.analysis import corner_path, pick_corners
+from picking_core.kinematics import ArmModel, pose_matrix
+from picking_core.pick_cycle import PickCycle, PickSettings
+from picking_core import trajectory
+from picking_core.planning import Planner, PlannerSettings
+from picking_description import default_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Row 7: how far from P1 and P3, and below P4, the joint moves meet the lines (PickSettings.blend_radius,
@@ -26,7 +27,7 @@ APPLE = pose_matrix([0.70, 0.15, 0.65], [0.0, np.sqrt(0.5), 0.0, np.sqrt(0.5)]) 
 
 
 def _arm():
-    return ArmModel.from_urdf(ROOT / 'config' / 'picking_arm.urdf')
+    return ArmModel.from_urdf(default_urdf())
 
 
 def _start(settings):

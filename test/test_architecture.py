@@ -1,4 +1,4 @@
-"""The layout holds itself: what each part of the workspace may import (docs/architecture.md).
+"""The layout holds itself: what each package of the workspace may import (docs/architecture.md).
 
 The imports are read from the source (every ``import`` and ``from ... import`` statement,
 at any depth, relative ones resolved), not by importing the modules.
@@ -12,24 +12,19 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / 'src'
-#: The planner's pure core: maths, usable from a notebook, tested without ROS.
-PURE_CORE = ('picking_planner.trajectory', 'picking_planner.geometry', 'picking_planner.kinematics',
-             'picking_planner.pick_cycle', 'picking_planner.planning', 'picking_planner.goal_policy',
-             'picking_planner.sent_plans', 'picking_planner.analysis', 'picking_planner.resources',
-             'picking_planner.compiled', 'picking_controller.core', 'picking_controller.events',
-             'picking_controller.validation', 'picking_controller.splicing', 'picking_controller.monitoring',
-             'picking_controller.limiting', 'picking_controller.sampler', 'picking_controller.goals',
-             'picking_planner.lifecycle', 'picking_sim.servo', 'picking_planner.collision',
-             'picking_planner.approaches', 'picking_sim.witness')
+#: What the pure core may import beyond the standard library and itself.
+CORE_LIBRARIES = ('numpy', 'scipy', 'numba', 'ruckig', 'coal', 'yaml', 'hypothesis')
+#: The pure modules of the node packages: tested without ROS like the core.
+PURE_IN_NODES = ('picking_controller.core', 'picking_controller.events', 'picking_controller.validation',
+                 'picking_controller.splicing', 'picking_controller.monitoring', 'picking_controller.limiting',
+                 'picking_controller.sampler', 'picking_controller.goals', 'picking_sim.servo', 'picking_sim.witness')
+#: The workspace's packages that run nodes or tools (everything but the core, the description and common).
+NODE_PACKAGES = ('picking_planner', 'picking_controller', 'picking_sim', 'picking_bringup')
 #: Modules that speak ROS: the middleware and message packages.
 ROS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs',
        'trajectory_msgs', 'diagnostic_msgs', 'visualization_msgs', 'control_msgs', 'action_msgs',
        'picking_interfaces', 'picking_common')
-#: What the controller and the simulator may take from the planner package: its maths, and the scene
-#: the simulator watches the arm against as a witness (its geometry and its message form).
-PLANNER_MATHS = ('picking_planner.trajectory', 'picking_planner.kinematics', 'picking_planner.geometry',
-                 'picking_planner.resources', 'picking_planner.compiled', 'picking_planner.collision',
-                 'picking_planner.scene_msgs')
+STDLIB = set(sys.stdlib_module_names) | {'__future__'}
 
 
 def module_name(path):
@@ -76,21 +71,41 @@ def violations(mods, rule):
     return [(name, imp) for name, path in mods.items() for imp in imports_of(path, name) if rule(name, imp)]
 
 
-def pure_core_imports_ros(module, imported):
-    return under(module, PURE_CORE) and under(imported, ROS)
+def core_imports_more_than_its_libraries(module, imported):
+    """The core imports the standard library, its numeric libraries and itself: no ROS, no node, no file of the
+    workspace's other packages."""
+    top = imported.split('.')[0]
+    return under(module, ('picking_core',)) and top not in STDLIB and top not in CORE_LIBRARIES + ('picking_core',)
 
 
-def controller_or_sim_reach_into_the_planner(module, imported):
-    return (under(module, ('picking_controller', 'picking_sim')) and under(imported, ('picking_planner',))
-            and not under(imported, PLANNER_MATHS))
+def description_imports_the_workspace(module, imported):
+    """The description is looked up by everyone and looks up no one."""
+    return under(module, ('picking_description',)) and imported.split('.')[0].startswith('picking')
 
 
-def common_knows_the_arm(module, imported):
-    return under(module, ('picking_common',)) and under(imported, ('picking_planner', 'picking_controller',
-                                                                     'picking_sim'))
+def pure_module_of_a_node_package_imports_ros(module, imported):
+    return under(module, PURE_IN_NODES) and under(imported, ROS)
 
 
-RULES = [pure_core_imports_ros, controller_or_sim_reach_into_the_planner, common_knows_the_arm]
+def controller_or_sim_import_the_planner(module, imported):
+    return under(module, ('picking_controller', 'picking_sim')) and under(imported, ('picking_planner', 'picking_bringup'))
+
+
+def common_knows_a_node(module, imported):
+    return under(module, ('picking_common',)) and under(imported, NODE_PACKAGES)
+
+
+def a_package_imports_another_ones_node_or_tools(module, imported):
+    """A node (``<package>.node``, the harvester) and the bring-up tools are imported by no other package."""
+    own = module.split('.')[0]
+    nodes = ('picking_planner.node', 'picking_planner.harvester', 'picking_controller.node', 'picking_sim.node')
+    return (imported.split('.')[0] != own and own != 'picking_bringup' and under(imported, nodes)) or \
+        (own != 'picking_bringup' and under(imported, ('picking_bringup',)))
+
+
+RULES = [core_imports_more_than_its_libraries, description_imports_the_workspace,
+         pure_module_of_a_node_package_imports_ros, controller_or_sim_import_the_planner, common_knows_a_node,
+         a_package_imports_another_ones_node_or_tools]
 
 
 @pytest.mark.parametrize('rule', RULES, ids=lambda r: r.__name__)
@@ -124,12 +139,18 @@ def test_there_is_no_import_cycle_between_modules():
 
 
 @pytest.mark.parametrize('rule, module, source', [
-    (pure_core_imports_ros, 'picking_planner.trajectory.lspb', 'import rclpy\n'),
-    (pure_core_imports_ros, 'picking_planner.pick_cycle', 'from sensor_msgs.msg import JointState\n'),
-    (pure_core_imports_ros, 'picking_controller.core', 'from picking_common.status import Level\n'),
-    (controller_or_sim_reach_into_the_planner, 'picking_controller.node', 'from picking_planner.node import PlannerNode\n'),
-    (controller_or_sim_reach_into_the_planner, 'picking_sim.node', 'from picking_planner.cli import demo\n'),
-    (common_knows_the_arm, 'picking_common.loop', 'from picking_planner.kinematics import ArmModel\n'),
+    (core_imports_more_than_its_libraries, 'picking_core.trajectory.lspb', 'import rclpy\n'),
+    (core_imports_more_than_its_libraries, 'picking_core.pick_cycle', 'from sensor_msgs.msg import JointState\n'),
+    (core_imports_more_than_its_libraries, 'picking_core.harvest', 'from picking_description import urdf_path\n'),
+    (core_imports_more_than_its_libraries, 'picking_core.platform', 'import matplotlib\n'),
+    (description_imports_the_workspace, 'picking_description', 'from picking_core import kinematics\n'),
+    (pure_module_of_a_node_package_imports_ros, 'picking_controller.core', 'from picking_common.status import Level\n'),
+    (pure_module_of_a_node_package_imports_ros, 'picking_sim.servo', 'import rclpy\n'),
+    (controller_or_sim_import_the_planner, 'picking_controller.node', 'from picking_planner.parameters import PARAMS\n'),
+    (controller_or_sim_import_the_planner, 'picking_sim.node', 'from picking_bringup import demo\n'),
+    (common_knows_a_node, 'picking_common.loop', 'from picking_controller.core import ControllerCore\n'),
+    (a_package_imports_another_ones_node_or_tools, 'picking_planner.harvester', 'from picking_bringup.stack import Stack\n'),
+    (a_package_imports_another_ones_node_or_tools, 'picking_sim.node', 'from picking_controller.node import ControllerNode\n'),
 ])
 def test_each_rule_catches_a_forbidden_import(tmp_path, rule, module, source):
     """The rules are not vacuous: a module given one forbidden import breaks its rule."""
@@ -144,9 +165,9 @@ def test_each_rule_catches_a_forbidden_import(tmp_path, rule, module, source):
 def test_a_cycle_is_caught(tmp_path):
     mods = modules()
     a, b = tmp_path / 'a.py', tmp_path / 'b.py'
-    a.write_text('from picking_planner import zz_b\n')
-    b.write_text('from picking_planner import zz_a\n')
-    graph_mods = {**mods, 'picking_planner.zz_a': a, 'picking_planner.zz_b': b}
+    a.write_text('from picking_core import zz_b\n')
+    b.write_text('from picking_core import zz_a\n')
+    graph_mods = {**mods, 'picking_core.zz_a': a, 'picking_core.zz_b': b}
     import test_architecture as me
     original = me.modules
     me.modules = lambda: graph_mods

@@ -1,6 +1,5 @@
 """The README's Python examples run as pasted, from the repository root."""
 
-import os
 import re
 from pathlib import Path
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from picking_planner.trajectory import PiecewisePolynomial
+from picking_core.trajectory import PiecewisePolynomial
 
 from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared, Tolerances  # noqa: F401  (the API)
 from .goals import ErrorCode, JointTolerances, Outcome  # noqa: F401  (the API)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
-from picking_planner.trajectory import PiecewisePolynomial
+from picking_core.trajectory import PiecewisePolynomial
 
 #: Shortest lead-in from the current reference to a new trajectory's first point, s.
 MIN_LEAD = 0.02

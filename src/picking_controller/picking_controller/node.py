@@ -39,8 +39,8 @@ from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status
 from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
-from picking_planner.kinematics import ArmModel
-from picking_planner.resources import default_urdf
+from picking_core.kinematics import ArmModel
+from picking_description import default_urdf
 
 from .core import ControllerCore, ErrorCode, Event, Outcome, Tolerances
 from .events import Mode

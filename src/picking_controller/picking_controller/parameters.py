@@ -7,7 +7,7 @@ RUNTIME = ('path_tolerance', 'goal_tolerance', 'goal_time_tolerance', 'stopped_v
            'stall_limit')
 
 PARAMS = (
-    Param('urdf_path', '', "the arm's URDF file; empty: config/picking_arm.urdf", read_only=True),
+    Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
     Param('update_rate', 1000.0, 'rate of the control loop and of joint_commands', 'Hz', (1.0, 10000.0),
           read_only=True),
     Param('thread_priority', 0, 'SCHED_FIFO priority of the control loop thread, as ros2_control (needs '

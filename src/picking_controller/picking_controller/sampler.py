@@ -15,7 +15,7 @@ points, which is C2 and does not overshoot. ``smooth_positions=False`` gives
 the linear interpolation of ros2_controllers.
 
 With accelerations, two points less than two microseconds apart are one instant where the
-acceleration steps (:mod:`picking_planner.trajectory.waypoints`): the first point ends the segment
+acceleration steps (:mod:`picking_core.trajectory.waypoints`): the first point ends the segment
 before it, the second begins the one after it, so the planner's LSPB blends and cubic joins run
 exactly as planned instead of through a quintic that overshoots the step.
 """
@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from picking_planner.trajectory import PiecewisePolynomial, concatenate, hermite_coeffs, quintic
-from picking_planner.trajectory.waypoints import step_pairs, through_waypoints
+from picking_core.trajectory import PiecewisePolynomial, concatenate, hermite_coeffs, quintic
+from picking_core.trajectory.waypoints import step_pairs, through_waypoints
 
 
 def _block(values, name, shape):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from picking_planner.trajectory import brake, held_within_limits, hold
+from picking_core.trajectory import brake, held_within_limits, hold
 
 from .events import LEADS, MIN_LEAD, Event, LateTrajectory, Mode, Prepared
 from .goals import ErrorCode, Outcome

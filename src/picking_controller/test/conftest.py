@@ -1,1 +1,1 @@
-from picking_common.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)
+from picking_core.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)

@@ -1,4 +1,4 @@
-"""Every plan runs as planned: the planner's points (picking_planner.trajectory.waypoints) through the
+"""Every plan runs as planned: the planner's points (picking_core.trajectory.waypoints) through the
 controller's core give, at every tick, the plan's own position, velocity and acceleration, for every
 method, and never a limited command.
 
@@ -12,11 +12,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from picking_controller.core import ControllerCore, Tolerances
-from picking_planner.kinematics import ArmModel, pose_matrix
-from picking_planner.pick_cycle import PickCycle, PickSettings
-from picking_planner.planning import PATH_METHODS, POSE_METHODS, Planner, PlannerSettings
-from picking_planner.resources import default_urdf
-from picking_planner.trajectory import concatenate, waypoints
+from picking_core.kinematics import ArmModel, pose_matrix
+from picking_core.pick_cycle import PickCycle, PickSettings
+from picking_core.planning import PATH_METHODS, POSE_METHODS, Planner, PlannerSettings
+from picking_description import default_urdf
+from picking_core.trajectory import concatenate, waypoints
 
 BOUND = (1e-9, 1e-7, 1e-4)
 ARM = ArmModel.from_urdf(default_urdf())

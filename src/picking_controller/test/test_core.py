@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from picking_controller.core import ControllerCore, Tolerances
-from picking_planner.trajectory import PiecewisePolynomial
+from picking_core.trajectory import PiecewisePolynomial
 
 NAMES = ['a', 'b', 'gripper']
 INF = np.inf
@@ -204,7 +204,7 @@ def test_a_trajectory_given_as_arrays_runs_as_the_same_one_given_as_lists():
 
 
 def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
-    from picking_planner.trajectory import hold
+    from picking_core.trajectory import hold
     c = core()
     (q, qd, qdd), events = c.command(0.0)
     assert q == pytest.approx([0.0, 0.0, 0.05]) and not events
@@ -241,7 +241,7 @@ def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
     """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline
     through them overshoots the limit (the points themselves keep it). It starts 55 ms after its
     first point, at rest until then, so that the lead-in to its first point run keeps the limit."""
-    from picking_planner import trajectory
+    from picking_core import trajectory
     c = core()
     plan = trajectory.lspb([0.0, 0.0], [0.3, 0.0], 0.6, 9.8)        # 9.8 of the 10 rad/s^2 limit
     t = np.arange(0.0, 0.66 + 1e-9, 0.01)

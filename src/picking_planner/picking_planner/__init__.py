@@ -1,9 +1,2 @@
-"""Picking-arm planner: the pure core (no ROS) and the planner node.
-
-The core modules ``trajectory``, ``geometry`` and ``kinematics`` import only
-numpy and scipy; the ROS node lives in ``picking_planner.node``.
-"""
-
-from . import geometry, kinematics, trajectory
-
-__all__ = ['geometry', 'kinematics', 'trajectory']
+"""The planner node (``picking-planner``) and the coordinator of several arms (``picking-harvester``): ROS
+shells around :mod:`picking_core`."""

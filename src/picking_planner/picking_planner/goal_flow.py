@@ -3,7 +3,7 @@
 Goals come from the topics and the actions, wait while the arm's state or the controller is not
 known (or the controller has not answered the last plan), are planned, and go to the controller's
 ``follow_joint_trajectory`` action; its answers end them. The decisions are the pure classes'
-(:class:`~picking_planner.goal_policy.GoalPolicy`, :class:`~picking_planner.lifecycle.Lifecycle`);
+(:class:`~picking_core.goal_policy.GoalPolicy`, :class:`~picking_core.lifecycle.Lifecycle`);
 this part turns messages into their calls and their answers into messages.
 """
 
@@ -26,17 +26,17 @@ from picking_common.joint_state import seconds
 from picking_common.status import Level, stamp_key, status
 from picking_common.topics import newest_waiting
 
-from . import around
-from .goal_policy import WAIT_LIMIT, ZERO_KEY, Goal, Unsettled
-from .harvest import Harvest, HarvestGoal, HarvestRun
-from .collision import STEP as COLLISION_STEP, Allowed
-from .kinematics import Unreachable, pose_matrix
-from .kinematics.paths import check_joint_limits
-from .lifecycle import Ending, Flight, Outcome
-from .pick_cycle import PickCycle
-from .planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS
-from .resources import GRIPPER_JOINT
-from .trajectory import waypoints
+from picking_core import around
+from picking_core.goal_policy import WAIT_LIMIT, ZERO_KEY, Goal, Unsettled
+from picking_core.harvest import Harvest, HarvestGoal, HarvestRun
+from picking_core.collision import STEP as COLLISION_STEP, Allowed
+from picking_core.kinematics import Unreachable, pose_matrix
+from picking_core.kinematics.paths import check_joint_limits
+from picking_core.lifecycle import Ending, Flight, Outcome
+from picking_core.pick_cycle import PickCycle
+from picking_core.planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS
+from picking_core.pick_cycle import GRIPPER_JOINT
+from picking_core.trajectory import waypoints
 
 RESULTS = {'pose': MoveToPose, 'path': FollowPath, 'pick': Pick}
 

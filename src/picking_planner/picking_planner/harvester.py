@@ -1,8 +1,8 @@
 """``picking-harvester``: the coordinator of a platform of arms sharing one tree, a ROS shell around
-:class:`~picking_planner.coordination.PlatformRun`.
+:class:`~picking_core.coordination.PlatformRun`.
 
 Takes a tree's apples on ``tree_targets`` (geometry_msgs/PoseArray in the ``platform`` frame), splits
-them between the platform's arms (``config/platform.yaml``: each arm's namespace, base pose and box),
+them between the platform's arms (``picking_description/platforms/platform.yaml``: each arm's namespace, base pose and box),
 and sends each arm's planner its share on ``<arm>/harvest_targets``, in the arm's base frame, at the time
 the schedule keeps the arms apart with. Follows each arm on ``<arm>/planner_status``,
 ``<arm>/planned_trajectory`` (every released plan is checked against the other arms' released motion:
@@ -34,11 +34,12 @@ from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status, status_values
 from picking_common.topics import BURST, RELIABLE, LatestMessage
 
-from .coordination import PlatformRun
+from picking_core.coordination import PlatformRun
 from .goal_flow import msg_pose
-from .parameters import HARVESTER as PARAMS
-from .platform import SAMPLE, Coordinator, Platform
-from .resources import config_dir
+from .parameters import HARVESTER as PARAMS, PARAMS as PLANNER_PARAMS
+from picking_core.kinematics import ArmModel
+from picking_core.platform import SAMPLE, Coordinator, Platform, harvest_from_parameters
+from picking_description import default_urdf, platform_path
 
 
 
@@ -48,9 +49,15 @@ class HarvesterNode(Node):
     def __init__(self, **kwargs):
         super().__init__('picking_harvester', **kwargs)
         values = declare(self, PARAMS)
-        self.platform = Platform.from_yaml(values['platform_file'] or config_dir() / 'platform.yaml',
+        self.platform = Platform.from_yaml(values['platform_file'] or platform_path(),
                                            values['layout'] or None)
-        self.coordinator = Coordinator.from_platform(self.platform, clearance=values['clearance'],
+        # Each arm's planner as it plans by default (its parameters' defaults, the shipped ones), with its
+        # own parameters of the platform file on top.
+        arm = ArmModel.from_urdf(default_urdf())
+        defaults = {p.name: p.default for p in PLANNER_PARAMS}
+        self.coordinator = Coordinator.from_platform(self.platform,
+                                                     lambda **own: harvest_from_parameters(arm, {**defaults, **own}),
+                                                     clearance=values['clearance'],
                                                      slack=values['slack'], sample=SAMPLE)
         self.codec = Codec()
         self.run, self.key = None, None

@@ -42,16 +42,16 @@ from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level
 from picking_common.topics import BURST, LATCHED, NEWEST, RELIABLE, LatestMessage
 
-from .collision import Scene, World
+from picking_core.collision import Scene, World
 from .goal_flow import GoalFlow
-from .goal_policy import GoalPolicy
-from .kinematics import ArmModel
-from .lifecycle import Lifecycle
+from picking_core.goal_policy import GoalPolicy
+from picking_core.kinematics import ArmModel
+from picking_core.lifecycle import Lifecycle
 from .parameters import COLLISION, PARAMS, PICK, SETTINGS
-from .pick_cycle import PickSettings
-from .planning import Planner, PlannerSettings
-from .resources import config_dir, default_urdf
-from .scene_msgs import cloud_points, take_scene
+from picking_core.pick_cycle import PickSettings
+from picking_core.planning import Planner, PlannerSettings
+from picking_description import default_urdf, scene_path
+from picking_common.scene_msgs import cloud_points, take_scene
 
 
 class PlannerNode(GoalFlow, Node):
@@ -120,7 +120,7 @@ class PlannerNode(GoalFlow, Node):
                                f'avoiding {self.world.words()}')
 
     def _scene_file(self, path):
-        scene = Scene.from_yaml(path or config_dir() / 'workcell_scene.yaml')
+        scene = Scene.from_yaml(path or scene_path('workcell'))
         if scene.frame != self.arm.base_frame:
             raise ValueError(f'scene_file {path!r} is in frame {scene.frame!r}, not the arm\'s base frame '
                              f'{self.arm.base_frame!r} (no TF here)')

@@ -1,17 +1,17 @@
 """The planner's ROS parameters (pure: no rclpy; picking_common.params declares them).
 
-The defaults are the library's (:class:`~picking_planner.planning.PlannerSettings`,
-:class:`~picking_planner.pick_cycle.PickSettings`) but where :data:`NODE_DEFAULTS` says otherwise.
+The defaults are the library's (:class:`~picking_core.planning.PlannerSettings`,
+:class:`~picking_core.pick_cycle.PickSettings`) but where :data:`NODE_DEFAULTS` says otherwise.
 Every one but ``urdf_path`` takes effect at run time, checked with the others (a set that the
 planner cannot plan with is refused with the reason).
 """
 
 from picking_common.params import Param
 
-from .collision import CLEARANCE as COLLISION_CLEARANCE
-from .pick_cycle import PickSettings
-from .platform import CLEARANCE, SLACK
-from .planning import PlannerSettings
+from picking_core.collision import CLEARANCE as COLLISION_CLEARANCE
+from picking_core.pick_cycle import PickSettings
+from picking_core.platform import CLEARANCE, SLACK
+from picking_core.planning import PlannerSettings
 
 #: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
 #: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
@@ -84,14 +84,14 @@ _TEXT = {
 }
 
 PARAMS = (
-    Param('urdf_path', '', "the arm's URDF file; empty: config/picking_arm.urdf", read_only=True),
+    Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
     Param('reference_timeout', 0.1, "plan from the controller's reference (joint_commands) while it is this fresh, "
           'else from joint_states', 's', (0.001, 10.0)),
     Param('start_delay', 0.1, 'a plan starts this long after its planning is expected to end (stamped so), so that a '
           'moving arm never jumps', 's', (0.0, 10.0)),
     *(Param(name, _default(name), text, unit, rng) for name, (text, unit, rng) in _TEXT.items()),
     Param('scene_file', '', 'the obstacles around the arm (YAML, see docs/collisions.md; empty: the shipped '
-          'config/workcell_scene.yaml); the scene topic replaces it at run time'),
+          'picking_description/scenes/workcell_scene.yaml); the scene topic replaces it at run time'),
     Param('avoid_collisions', True, 'check every plan against the scene, the canopy cloud and the arm itself, and '
           'pick around branches; false plans as if the world were empty'),
     Param('collision_clearance', COLLISION_CLEARANCE, 'the least distance kept between the arm and an obstacle', 'm',
@@ -101,7 +101,7 @@ PARAMS = (
 #: picking-harvester's parameters (the coordinator of several arms, harvester.py).
 HARVESTER = (
     Param('platform_file', '', 'the platform: its arms\' namespaces, base poses and boxes (YAML; empty: the shipped '
-          'config/platform.yaml)', read_only=True),
+          'picking_description/platforms/platform.yaml)', read_only=True),
     Param('layout', '', 'the layout of the platform file to run (empty: its default)', read_only=True),
     Param('clearance', CLEARANCE, 'the least distance kept between two arms\' collision capsules', 'm', (0.0, 1.0),
           read_only=True),

@@ -30,11 +30,11 @@ from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, status
 from picking_common.topics import BURST, LATCHED, LatestMessage
-from picking_planner.collision import CollisionChecker, Scene
-from picking_planner.kinematics import ArmModel
-from picking_planner.kinematics.capsules import ArmCapsules
-from picking_planner.resources import config_dir, default_urdf
-from picking_planner.scene_msgs import take_scene
+from picking_core.collision import CollisionChecker, Scene
+from picking_core.kinematics import ArmModel
+from picking_core.kinematics.capsules import ArmCapsules
+from picking_description import default_urdf, scene_path
+from picking_common.scene_msgs import take_scene
 
 from .parameters import PARAMS
 from .servo import Servo, ServoParams
@@ -112,7 +112,7 @@ class SimNode(Node):
                                  phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled,
                                  catch_up_yield=CATCH_UP_YIELD)
         # The witness: measured positions, as published, checked against the scene with no clearance.
-        scene = Scene.from_yaml(p['scene_file'] or config_dir() / 'workcell_scene.yaml')
+        scene = Scene.from_yaml(p['scene_file'] or scene_path('workcell'))
         self.witness = Witness(CollisionChecker(ArmCapsules.from_arm(self.arm), scene, clearance=0.0,
                                                 self_check=False))
         self._watched = collections.deque(maxlen=int(10 * p['publish_rate']))

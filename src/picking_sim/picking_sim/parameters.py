@@ -1,13 +1,13 @@
 """The simulator's ROS parameters (pure: no rclpy; picking_common.params declares them)."""
 
 from picking_common.params import Param
-from picking_planner.resources import GRIPPER_OPEN, HOME_POSITIONS
+from picking_core.pick_cycle import GRIPPER_OPEN, HOME_POSITIONS
 
 #: The pick cycle's home with the gripper open: where the default arm starts (another arm: every joint at 0).
 HOME = [*HOME_POSITIONS, GRIPPER_OPEN]
 
 PARAMS = (
-    Param('urdf_path', '', "the arm's URDF file; empty: config/picking_arm.urdf", read_only=True),
+    Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
     Param('publish_rate', 100.0, 'rate of joint_states', 'Hz', (1.0, 10000.0), read_only=True),
     Param('servo_rate', 1000.0, 'rate of the position loop of Fig. 1 (at least publish_rate)', 'Hz',
           (10.0, 100000.0), read_only=True),
@@ -33,5 +33,5 @@ PARAMS = (
     Param('servo.velocity_margin', 1.2, 'the drive saturates at this times the URDF velocity limit (plans use up to '
           '1x)', '', (1.0, 10.0), read_only=True),
     Param('scene_file', '', 'the obstacles the simulator watches the arm against, as the planner\'s scene_file (empty: '
-          'the shipped config/workcell_scene.yaml); the scene topic replaces it', read_only=True),
+          'the shipped picking_description/scenes/workcell_scene.yaml); the scene topic replaces it', read_only=True),
 )

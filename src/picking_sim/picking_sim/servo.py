@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from picking_planner.trajectory import quintic
+from picking_core.trajectory import quintic
 
 #: s: how far back a servo catching up after a stall takes a command stamped in its future.
 #: The middleware has been measured blocking a publishing thread (the servo's, with the GIL)

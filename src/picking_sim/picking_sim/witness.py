@@ -35,7 +35,7 @@ class Episode:
 
 
 class Witness:
-    """Watches measured joint positions against a :class:`~picking_planner.collision.CollisionChecker`
+    """Watches measured joint positions against a :class:`~picking_core.collision.CollisionChecker`
     (built with clearance 0 and no self-collision). ``observe`` returns the episodes that started or
     ended; ``count`` is how many have started."""
 

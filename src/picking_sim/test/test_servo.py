@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from picking_planner import trajectory
+from picking_core import trajectory
 from picking_sim.servo import Servo, ServoParams
 
 

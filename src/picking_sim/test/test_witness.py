@@ -3,10 +3,10 @@ when it starts and when it ends."""
 
 import numpy as np
 
-from picking_planner.collision import CollisionChecker, Scene
-from picking_planner.kinematics import ArmModel
-from picking_planner.kinematics.capsules import ArmCapsules
-from picking_planner.resources import default_urdf
+from picking_core.collision import CollisionChecker, Scene
+from picking_core.kinematics import ArmModel
+from picking_core.kinematics.capsules import ArmCapsules
+from picking_description import default_urdf
 from picking_sim.witness import Witness
 
 HOME = np.array([0.0, 0.2, 1.6, 0.0, -0.23, 0.0])

@@ -1,0 +1,431 @@
+"""The demo's report: what a motion engineer wants to see after a pick cycle."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+from picking_common.status import stamp_key, status_values
+
+from picking_core.analysis import (REFERENCE_BOUND, cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners,
+                        reference_deviation, tracking_error)
+from picking_core.kinematics import ArmModel, pose_matrix
+from picking_core.pick_cycle import PickCycle, PickSettings
+from picking_core.planning import Planner, PlannerSettings
+from picking_core.trajectory import through_waypoints
+from picking_description import default_urdf
+
+
+def log(msg):
+    print(f'[demo {time.strftime("%H:%M:%S")}] {msg}', flush=True)
+
+
+def load_demo_settings(config):
+    """The apple pose and the demo's own values from pick_cycle.yaml (``picking_demo`` section)."""
+    data = yaml.safe_load((config / 'pick_cycle.yaml').read_text()) or {}
+    demo = (data.get('picking_demo') or {}).get('ros__parameters') or {}
+    planner = next((v.get('ros__parameters', {}) for k, v in data.items() if k.endswith('picking_planner')), {})
+    return demo, planner
+
+
+def _stamp(s):
+    return s.sec + s.nanosec * 1e-9
+
+
+def planned_arrays(msg, t_received):
+    """Names, absolute times and q, qd, qdd of a JointTrajectory."""
+    t0 = _stamp(msg.header.stamp) or t_received
+    t = np.array([t0 + p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points])
+    q = np.array([p.positions for p in msg.points])
+    qd = np.array([p.velocities for p in msg.points])
+    qdd = np.array([p.accelerations for p in msg.points])
+    return list(msg.joint_names), t, q, qd, qdd
+
+
+def measured_arrays(messages, names):
+    rows = [(_stamp(m.header.stamp), [m.position[list(m.name).index(n)] for n in names]) for _, m in messages]
+    return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+
+
+def _since(s, origin):
+    """Seconds from stamp ``origin`` to stamp ``s``, to the nanosecond (as a float of the epoch, a
+    stamp is good to a quarter of a microsecond only: too coarse for a plan's acceleration steps)."""
+    return (s.sec - origin.sec) + (s.nanosec - origin.nanosec) * 1e-9
+
+
+def commanded_arrays(messages, names, origin):
+    """Times since stamp ``origin`` and q, qd, qdd of ``joint_commands`` (the acceleration rides in
+    ``effort``) for ``names``."""
+    t, q, qd, qdd = [], [], [], []
+    for _, m in messages:
+        cols = [list(m.name).index(n) for n in names]
+        t.append(_since(m.header.stamp, origin))
+        for out, field in ((q, m.position), (qd, m.velocity), (qdd, m.effort)):
+            out.append([field[c] for c in cols])
+    return np.array(t), np.array(q), np.array(qd), np.array(qdd)
+
+
+def _table(header, rows):
+    """A Markdown table; a pipe inside a cell (``peak |v|``) is escaped, so that every row keeps its cells."""
+    def cell(c):
+        return str(c).replace('|', '\\|')
+    out = ['| ' + ' | '.join(cell(h) for h in header) + ' |', '| ' + ' | '.join('---' for _ in header) + ' |']
+    out += ['| ' + ' | '.join(cell(c) for c in r) + ' |' for r in rows]
+    return '\n'.join(out)
+
+
+#: compare_methods' labels of the jerk-limited cycle through its corners and with them rounded.
+THROUGH_CORNERS = 'optimal, jerk-limited, P1, P3, P4 passed at speed'
+#: m, the blend radii of the rounded cycle (at the apple, over the box).
+ROUND_RADIUS, BOX_ROUND_RADIUS = 0.02, 0.10
+ROUNDED = (f'the same, corners rounded (blend_radius {100 * ROUND_RADIUS:g} cm, box_blend_radius '
+           f'{100 * BOX_ROUND_RADIUS:g} cm)')
+
+
+def compare_methods(arm, planner_params, apple_T):
+    """The same cycle with cubic, quintic and LSPB segments, and jerk-limited (optimal, blended, with and
+    without rounded corners): ``(rows, plans)``, a row (label, cycle time, peak |qdd|, largest jerk) and
+    the plan of each, by label."""
+    settings = PlannerSettings(**{k: v for k, v in planner_params.items()
+                                  if k in PlannerSettings.__dataclass_fields__})
+    pick = PickSettings(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in planner_params.items()
+                           if k in PickSettings.__dataclass_fields__}).validate(arm)
+    home = np.asarray(pick.home_positions, float)
+    z = np.zeros(arm.dof)
+    rows, plans = [], {}
+    jerk_limited = dict(method='optimal', path_method='optimal', limit_jerk=True, cartesian_profile='optimal')
+    paper = dict(limit_jerk=False, cartesian_profile='quintic')
+    stops = dict(blend=False, blend_radius=0.0, box_blend_radius=0.0)
+    for label, changes, pick_changes in (
+            ('cubic (transfer quintic_via)', dict(method='cubic', **paper),
+             dict(approach_method='cubic', transfer_method='quintic_via', **stops)),
+            ('quintic (transfer quintic_via)', dict(method='quintic', **paper),
+             dict(approach_method='quintic', transfer_method='quintic_via', **stops)),
+            ('lspb (transfer via_lspb)', dict(method='lspb', **paper),
+             dict(approach_method='lspb', transfer_method='via_lspb', **stops)),
+            (THROUGH_CORNERS, jerk_limited,
+             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.0,
+                  box_blend_radius=0.0)),
+            (ROUNDED, jerk_limited,
+             dict(approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=ROUND_RADIUS,
+                  box_blend_radius=BOX_ROUND_RADIUS))):
+        planner = Planner(arm, PlannerSettings(**{**settings.__dict__, **changes}))
+        plan = PickCycle(planner, PickSettings(**{**pick.__dict__, **pick_changes}).validate(arm)).plan(
+            (home, z, z), apple_T)
+        t = np.arange(0.0, plan.duration, 0.001)
+        _, _, qdd = plan.trajectory.sample(t)
+        rows.append((label, f'{plan.duration:.2f}', f'{np.abs(qdd[:, :arm.dof]).max():.2f}',
+                     f'{peak_jerk(t, qdd[:, :arm.dof]).max():.0f}'))
+        plans[label] = plan
+    return rows, plans
+
+
+def analyse_and_report(rec, events, config, out, quick=False):
+    """Write report.md, report.json, plots and demo.mcap; print the report; True if all checks pass."""
+    from .plots import plot_corners, plot_path_3d, plot_profiles
+    arm = ArmModel.from_urdf(default_urdf())
+    demo, planner_params = load_demo_settings(config)
+    planner_yaml = yaml.safe_load((config / 'planner.yaml').read_text())
+    params = {**next(iter(planner_yaml.values()))['ros__parameters'], **planner_params}
+    trajectories = rec.messages('planned_trajectory')
+    # The pick's plan as the controller ran it: a plan that reached it too late was planned again.
+    ran = {status_values(m).get('trajectory') for _, m in rec.messages('controller_status')
+           if m.message == 'trajectory accepted'}
+    t_recv, pick_msg = next((x for x in trajectories if stamp_key(x[1].header.stamp) in ran), trajectories[0])
+    names, t, q, qd, qdd = planned_arrays(pick_msg, t_recv)
+    t_meas, q_meas = measured_arrays(rec.messages('joint_states'), names)
+    err = tracking_error(t, q, t_meas, q_meas)
+    window = ~np.isnan(err[:, 0])
+    # Final error: the arm at rest, 0.3 s after the plan's end (or the last sample before the next goal).
+    after = np.flatnonzero(t_meas >= t[-1] + 0.3)
+    final = np.abs(q_meas[after[0] if after.size else -1] - q[-1])
+    segments = parse_segments(events['plan']['segments'])
+    starts = np.concatenate(([0.0], np.cumsum([s[2] for s in segments])))[:-1] + t[0]
+    n_arm = arm.dof
+    lower, upper, vmax, amax = arm.all_limits
+    idx = [list(arm.all_joint_names).index(n) for n in names]
+    # The plan as the controller runs it (quintics between the points, acceleration steps kept),
+    # every millisecond, for its peaks and its jerk.
+    plan = through_waypoints([_since(p.time_from_start, pick_msg.points[0].time_from_start) for p in pick_msg.points],
+                             q, qd, qdd)
+    t_ms = np.arange(0.0, plan.duration, 1e-3)
+    _, qd_ms, qdd_ms = plan.sample(t_ms)
+    peak_v = np.maximum(np.abs(qd).max(axis=0), np.abs(qd_ms).max(axis=0))
+    peak_a = np.maximum(np.abs(qdd).max(axis=0), np.abs(qdd_ms).max(axis=0))
+    jerk = peak_jerk(t_ms, qdd_ms)
+    # What the controller commanded against that plan.
+    # What the controller commanded against that plan: from its start or, when it came late and a
+    # catch-up lead-in replaced its beginning, from where it took over; a stalled loop delays it on purpose.
+    t_cmd, *cmd = commanded_arrays(rec.messages('joint_commands'), names, pick_msg.header.stamp)
+    controller = [(m.message, status_values(m)) for _, m in rec.messages('controller_status')]
+    caught_up = next((float(v.get('caught_up', 0.0)) for text, v in controller if text == 'trajectory accepted'
+                      and v.get('trajectory') == stamp_key(pick_msg.header.stamp)), 0.0)
+    deviation = reference_deviation(plan, _stamp(pick_msg.points[0].time_from_start) + caught_up, t_cmd, *cmd)
+    limited = [text for text, _ in controller if 'command limited' in text]
+    stalled = [text for text, _ in controller if 'control loop stalled' in text]
+    checks = {'velocity within limits': bool(np.all(peak_v <= vmax[idx] * (1 + 1e-6))),
+              'acceleration within limits': bool(np.all(peak_a <= amax[idx] * (1 + 1e-6))),
+              'positions within limits': bool(np.all((q >= lower[idx] - 1e-9) & (q <= upper[idx] + 1e-9))),
+              'the controller commanded the plan (no "command limited")': not limited,
+              'commanded acceleration within limits': bool(np.all(np.abs(cmd[2]) <= amax[idx] * (1 + 1e-6))),
+              }
+    if not stalled:
+        checks['the commanded reference within the bound of the plan'] = deviation is not None and all(
+            d.max() <= b for d, b in zip(deviation, REFERENCE_BOUND))
+
+    # Cartesian segments: requested line/arc from the plan's own tool points; the tool by FK of joint_states.
+    cart_rows = []
+    for (label, method, dur), start in zip(segments, starts):
+        if method not in ('line', 'arc'):
+            continue
+        seg_plan = (t >= start - 1e-9) & (t <= start + dur + 1e-9)
+        seg_meas = (t_meas >= start) & (t_meas <= start + dur)
+        tool_plan = arm.fk(q[seg_plan, :n_arm])[:, :3, 3]
+        a, mid, b = tool_plan[0], tool_plan[len(tool_plan) // 2], tool_plan[-1]
+        dev_plan = cartesian_deviation(method, a, mid, b, tool_plan)
+        dev_meas = cartesian_deviation(method, a, mid, b, arm.fk(q_meas[seg_meas, :n_arm])[:, :3, 3]) \
+            if seg_meas.any() else float('nan')
+        cart_rows.append((label, method, f'{np.linalg.norm(b - a) * 1e3:.1f}', f'{dev_plan * 1e3:.3f}',
+                          f'{dev_meas * 1e3:.3f}'))
+
+    cycle = float(t[-1] - t[0])
+    lines = ['# Pick-and-place demo (Table 1 on the simulator)', '',
+             f'- cycle time (plan): **{cycle:.2f} s**; goal reached {events["cycle_wall"]:.2f} s after '
+             'pick_target was published (planning, transport and settling included)',
+             f'- apple at {demo["apple_position"]} m, box drop point at {params.get("box_position")} m, '
+             f'speed_scale {params.get("speed_scale")}',
+             f'- planning time in the planner node: {float(events["plan"].get("planning_ms", "nan")):.1f} ms', '',
+             '## Segments', '', _table(['segment', 'method', 'duration [s]'],
+                                       [(lb, m, f'{d:.3f}') for lb, m, d in segments]), '',
+             '## Joints: peaks against the limits, tracking', '',
+             _table(['joint', 'peak |v|', 'v limit', 'peak |a|', 'a limit', 'largest jerk', 'max tracking error',
+                     'final error'],
+                    [(n, f'{peak_v[i]:.3f}', f'{vmax[idx[i]]:.3g}', f'{peak_a[i]:.3f}', f'{amax[idx[i]]:.3g}',
+                      f'{jerk[i]:.1f}', f'{np.nanmax(np.abs(err[:, i])):.5f} ({np.degrees(np.nanmax(np.abs(err[:, i]))):.3f}°)'
+                      if i < n_arm else f'{np.nanmax(np.abs(err[:, i])) * 1e3:.2f} mm',
+                      f'{final[i]:.2e}') for i, n in enumerate(names)]),
+             '', 'Units: rad, rad/s, rad/s², rad/s³ (the gripper: m, m/s, m/s², m/s³). Tracking error: measured '
+             '`joint_states` minus the planned trajectory at the measurement stamp.', '',
+             *([f'Largest deviation of the commanded reference (`joint_commands`, {deviation[3]} ticks recorded) '
+                f'from the plan over its {plan.duration:.2f} s: {deviation[0].max():.1e} rad, {deviation[1].max():.1e} '
+                f'rad/s, {deviation[2].max():.1e} rad/s² (bound: {REFERENCE_BOUND[0]:g} rad, {REFERENCE_BOUND[1]:g} '
+                f'rad/s, {REFERENCE_BOUND[2]:g} rad/s², docs/controller.md)'
+                + (f', after a {caught_up:.3f} s catch-up (the plan reached the controller late)' if caught_up else '')
+                + (f'; the controller said: {limited[0]}' if limited else '')
+                + (f'; not checked: {stalled[0]}' if stalled else '') + '.', '']
+               if deviation is not None else []),
+             '## Cartesian segments: the tool against the requested line or arc', '',
+             _table(['segment', 'kind', 'length [mm]', 'plan deviation [mm]', 'measured deviation [mm]'], cart_rows),
+             '', '## Checks', '', *[f'- {k}: {"yes" if v else "NO"}' for k, v in checks.items()]]
+    grasp = events['plan']
+    if 'grasp_start' in grasp:
+        lines += ['', f'Gripper: closes from {float(grasp["grasp_start"]):.2f} s to {float(grasp["grasp_end"]):.2f} s, '
+                      f'opens from {float(grasp["release_start"]):.2f} s to {float(grasp["release_end"]):.2f} s '
+                      '(`gripper_joint` in joint_states).']
+
+    apple_T = pose_matrix(demo['apple_position'], Rotation.from_euler('xyz', demo['apple_rpy']).as_quat())
+    compared = {}
+    if not quick:
+        log('planning the same cycle with cubic, quintic, LSPB and jerk-limited segments')
+        rows, compared = compare_methods(arm, params, apple_T)
+        lines += ['', '## The same cycle with cubic, quintic, LSPB and jerk-limited segments (planned in process)', '',
+                  _table(['method', 'cycle time [s]', 'peak |qdd| [rad/s²]', 'largest jerk [rad/s³]'], rows),
+                  '', 'Cubic segments start and stop with a step in acceleration (an infinite jerk, here the '
+                  'acceleration change within one 1 ms sample); LSPB blends too; quintics keep acceleration '
+                  'continuous. The paper\'s claim that parabolic transitions move smoothly is about velocity '
+                  'continuity: measured here, LSPB is the fastest of them for the same limits but not the smoothest. '
+                  'The jerk-limited cycle (Ruckig\'s time-optimal segments within the jerk limits of '
+                  '`picking_description/urdf/picking_arm_joint_limits.yaml`, `blend: true`) keeps every jerk limit at a fraction '
+                  'of a second more; rounding its corners at P1 and P3 (`blend_radius`) and lowering the apple into the box during '
+                  'the swing (`box_blend_radius`) takes about half a second off (`corners.png`: the tool at each '
+                  'corner, side on).']
+    if 'arc' in events:
+        lines += arc_section(rec, events['arc'], arm, names)
+    harvest_plot = None
+    if 'harvest' in events:
+        section, harvest_plot, harvest_checks = harvest_section(rec, events['harvest'], arm, out)
+        lines += section
+        checks.update(harvest_checks)
+
+    # Plots.
+    files = []
+    tp = t - t[0]
+    files.append(plot_profiles(out / 'joints.png', tp, q[:, :n_arm], qd[:, :n_arm], qdd[:, :n_arm],
+                               'Pick cycle: planned joint position, velocity, acceleration (Figs. 9-11, 14)', 'rad',
+                               labels=names[:n_arm], marks=starts[1:] - t[0], mark_labels=[s[0] for s in segments[1:]],
+                               extra=('gripper opening', q[:, n_arm], 'm') if q.shape[1] > n_arm else None))
+    files.append(_plot_error(out / 'tracking_error.png', t_meas[window] - t[0], err[window], names))
+    key = PickCycle(Planner(arm), PickSettings(**{k: (tuple(v) if isinstance(v, list) else v)
+                                                 for k, v in planner_params.items()
+                                                 if k in PickSettings.__dataclass_fields__})).key_poses(apple_T)
+    home = np.asarray(planner_params.get('home_positions'), float)
+    marks = {'P0': arm.fk(home)[:3, 3], **{k: v[:3, 3] for k, v in key.items()}}
+    curves = {'planned': arm.fk(q[:, :n_arm])[:, :3, 3], 'measured': arm.fk(q_meas[window][:, :n_arm])[:, :3, 3]}
+    if 'arc' in events:
+        _, ta, qa, _, _ = planned_arrays(trajectories[events['arc']['trajectory_index']][1],
+                                         trajectories[events['arc']['trajectory_index']][0])
+        curves['scenario 2: the Sec. 3.1 arc (planned)'] = arm.fk(qa[:, :n_arm])[:, :3, 3]
+    files.append(plot_path_3d(out / 'tool_path.png', curves, None, 'Tool path of the pick cycle (P0-P5 as in the '
+                              'README)', marks, unit='m'))
+    if compared:
+        corners = pick_corners(arm, compared[THROUGH_CORNERS])
+        tracks = {label: {name: corner_path(arm, compared[key], name) for name, _, _ in corners}
+                  for label, key in (('through the corners', THROUGH_CORNERS), ('rounded', ROUNDED))}
+        files.append(plot_corners(out / 'corners.png', corners, tracks,
+                                  'Jerk-limited cycle: the tool at its corners, through them and rounded',
+                                  caption='Each panel: the tool within 5 cm of a corner of the cycle, side on. "Through '
+                                          'the corners": blend, the joint moves meet the lines at P1, P3 and P4 at '
+                                          'speed; "rounded": they meet the lines blend_radius before (box_blend_radius '
+                                          'at P4). "P4 in" and "P4 out": the line into the box and the line out of it.'))
+    if harvest_plot is not None:
+        files.append(harvest_plot)
+    mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
+    files.append(mcap_path)
+    decoded = _check_mcap(mcap_path)
+    checks['MCAP decodes with mcap_ros2'] = decoded == n_msgs
+    lines += ['', '## Files', ''] + [f'- `{f}`' for f in files] + [
+        '', f'`demo.mcap`: {n_msgs} messages on {len(rec.types)} topics, all decoded again with mcap_ros2 '
+        f'({decoded}); open it in Foxglove or with `ros2 bag info`.']
+    report = '\n'.join(lines) + '\n'
+    (out / 'report.md').write_text(report)
+    (out / 'report.json').write_text(json.dumps({
+        'cycle_time_s': cycle, 'segments': segments, 'joints': names,
+        'peak_velocity': peak_v.tolist(), 'peak_acceleration': peak_a.tolist(), 'largest_jerk': jerk.tolist(),
+        'reference_deviation': None if deviation is None else [d.tolist() for d in deviation[:3]],
+        'max_tracking_error': np.nanmax(np.abs(err), axis=0).tolist(), 'final_error': final.tolist(),
+        'cartesian': cart_rows, 'checks': checks, 'files': [str(f) for f in files]}, indent=2))
+    print(report)
+    return all(checks.values())
+
+
+def harvest_statuses(rec, key):
+    """What planner_status said of harvest ``key``: ``{'picked': [(apple, at s)] in picking order,
+    'skipped': [(apple, reason)], 'accepted': values, 'final': values}``."""
+    out = {'picked': [], 'skipped': [], 'accepted': {}, 'final': {}}
+    for _, m in rec.messages('planner_status'):
+        v = status_values(m)
+        if v.get('goal') != key:
+            continue
+        if v.get('apple_state') == 'picked':
+            out['picked'].append((int(v['apple']), float(v['at'])))
+        elif v.get('apple_state') == 'skipped':
+            out['skipped'].append((int(v['apple']), m.message.split(': ', 2)[-1]))
+        elif v.get('state') == 'accepted':
+            out['accepted'] = v
+        elif v.get('state') in ('succeeded', 'aborted', 'superseded', 'canceled', 'refused'):
+            out['final'] = v
+    return out
+
+
+def harvest_markers(apples, said, header):
+    """visualization_msgs/MarkerArray of a harvested tree: each apple a sphere (red picked, grey
+    skipped), its place in the visiting order as text, and the order as a line strip."""
+    from geometry_msgs.msg import Point
+    from visualization_msgs.msg import Marker, MarkerArray
+    order = [i for i, _ in said['picked']]
+    skipped = {i for i, _ in said['skipped']}
+    out = MarkerArray()
+    for i, T in enumerate(apples):
+        for kind in ('apple', 'order'):
+            m = Marker(ns=kind, id=i, action=Marker.ADD)
+            m.header.frame_id = header.frame_id or 'base_link'
+            m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in T[:3, 3])
+            m.pose.orientation.w = 1.0
+            if kind == 'apple':
+                m.type, m.scale.x, m.scale.y, m.scale.z = Marker.SPHERE, 0.07, 0.07, 0.07
+                m.color.r, m.color.g, m.color.b, m.color.a = (0.5, 0.5, 0.5, 0.6) if i in skipped else (0.8, 0.1, 0.1, 1)
+            else:
+                m.type, m.scale.z, m.text = Marker.TEXT_VIEW_FACING, 0.04, (
+                    f'{order.index(i) + 1}' if i in order else 'skipped')
+                m.pose.position.z += 0.06
+                m.color.r = m.color.g = m.color.b = m.color.a = 1.0
+            out.markers.append(m)
+    path = Marker(ns='visiting order', id=0, action=Marker.ADD, type=Marker.LINE_STRIP)
+    path.header.frame_id = header.frame_id or 'base_link'
+    path.pose.orientation.w, path.scale.x = 1.0, 0.005
+    path.color.g, path.color.b, path.color.a = 0.6, 1.0, 1.0
+    path.points = [Point(x=float(apples[i][0, 3]), y=float(apples[i][1, 3]), z=float(apples[i][2, 3])) for i in order]
+    out.markers.append(path)
+    return out
+
+
+def harvest_section(rec, event, arm, out):
+    """The report's section on scenario 3 and its plot: ``(lines, plot path, checks)``."""
+    from picking_core.harvest import synthetic_tree
+    from .plots import plot_harvest
+    said = harvest_statuses(rec, event['goal'])
+    final, accepted = said['final'], said['accepted']
+    apples = synthetic_tree(event['apples'], seed=event['seed'])
+    t_recv, msg = rec.messages('planned_trajectory')[event['trajectory_index']]
+    names, t, q, _, _ = planned_arrays(msg, t_recv)
+    tool = arm.fk(q[:, :arm.dof])[:, :3, 3]
+    order = [i for i, _ in said['picked']]
+    ends = [at for _, at in said['picked']]
+    rows = [(k + 1, i, f'{np.round(apples[i][:3, 3], 3).tolist()}', f'{at:.2f}',
+             f'{at - (ends[k - 1] if k else 0.0):.2f}') for k, (i, at) in enumerate(said['picked'])]
+    rows += [('skipped', i, f'{np.round(apples[i][:3, 3], 3).tolist()}', '', why) for i, why in said['skipped']]
+    path = plot_harvest(out / 'harvest.png', apples, order, [i for i, _ in said['skipped']], tool,
+                        f'Scenario 3: a tree of {len(apples)} apples, its visiting order and the tool path')
+    per_apple = float(final.get('harvest_time', 'nan')) / max(int(final.get('picked', 0)), 1)
+    lines = ['', '## Scenario 3: a tree harvested', '',
+             f'{len(apples)} apples of the synthetic tree seeded {event["seed"]} (`picking-goal harvest --tree '
+             f'{len(apples)} --seed {event["seed"]}`): **{final.get("picked")} picked**, {final.get("skipped")} '
+             f'skipped, {float(final.get("harvest_time", "nan")):.1f} s planned and run, {per_apple:.2f} s an apple '
+             f'(box included): **{float(final.get("apples_per_hour", "nan")):.0f} apples an hour**. Order (estimated '
+             f'moves between apples, home and box): {float(accepted.get("order_estimate", "nan")):.2f} s planned '
+             f'against {float(accepted.get("given_order_estimate", "nan")):.2f} s in the order given, chosen in '
+             f'{float(accepted.get("ordering_ms", "nan")):.0f} ms; the harvest planned in '
+             f'{float(accepted.get("planning_ms", "nan")) / 1e3:.2f} s.', '',
+             _table(['#', 'apple', 'position [m]', 'in the box at [s]', 'cycle [s] / reason'], rows), '',
+             '`harvest.png`: the tree from the front and from above, the visiting order and the tool path; '
+             '`demo.mcap` holds the tree as visualization_msgs/MarkerArray on `harvest_markers`.']
+    checks = {'the harvest succeeded': final.get('state') == 'succeeded',
+              'every apple picked or skipped with a reason': len(order) + len(said['skipped']) == len(apples)}
+    lines += ['', *[f'- {k}: {"yes" if v else "NO"}' for k, v in checks.items()]]
+    return lines, path, checks
+
+
+def arc_section(rec, arc_event, arm, names):
+    trajectories = rec.messages('planned_trajectory')
+    t_recv, msg = trajectories[arc_event['trajectory_index']]
+    names_a, t, q, _, _ = planned_arrays(msg, t_recv)
+    t_meas, q_meas = measured_arrays(rec.messages('joint_states'), names_a)
+    inside = (t_meas >= t[0]) & (t_meas <= t[-1])
+    p1, p2, p3 = (np.asarray(p) for p in arc_event['points'])
+    tool_plan = arm.fk(q[:, :arm.dof])[:, :3, 3]
+    from picking_core.geometry import Arc
+    from picking_core.analysis import distance_to_arc_circle
+    arc = Arc.through(tool_plan[0], p2, p3)
+    dev_plan = distance_to_arc_circle(tool_plan, arc).max()
+    dev_meas = distance_to_arc_circle(arm.fk(q_meas[inside, :arm.dof])[:, :3, 3], arc).max()
+    return ['', '## Scenario 2: the paper\'s Sec. 3.1 arc', '',
+            f'P1 {np.round(p1, 3).tolist()}, P2 {np.round(p2, 3).tolist()}, P3 {np.round(p3, 3).tolist()} m '
+            f'(the paper\'s points times {arc_event.get("scale", "?")} m, moved into the workspace): radius '
+            f'{arc.radius * 1e3:.1f} mm, sweep {np.degrees(arc.sweep):.1f}°, {t[-1] - t[0]:.2f} s. Largest distance '
+            f'of the tool from the arc: planned {dev_plan * 1e3:.3f} mm, measured {dev_meas * 1e3:.3f} mm.']
+
+
+def _check_mcap(path):
+    from mcap_ros2.reader import read_ros2_messages
+    return sum(1 for _ in read_ros2_messages(str(path)))
+
+
+def _plot_error(path, t, err, names):
+    from .plots import _pyplot, legend_below
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4.6))
+    for j, n in enumerate(names):
+        scale, unit = (np.degrees(1.0), '°') if n != 'gripper_joint' else (1e3, 'mm')
+        ax.plot(t, err[:, j] * scale, label=f'{n} [{unit}]')
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('measured − planned [° (gripper: mm)]')
+    ax.set_title('Tracking error over the pick cycle')
+    ax.grid(True, alpha=0.3)
+    legend_below(fig, ax)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,54 @@
+"""The shipped configuration: the nodes' parameter files and the arm, tree and harvest they make.
+
+The parameter files (``planner.yaml``, ``pick_cycle.yaml``, ``controller.yaml``, ``sim.yaml``,
+``paper_methods.yaml``) are looked up in this order: the ``PICKING_CONFIG`` environment variable
+(a folder), ``share/picking_bringup/config`` of a colcon install, and the workspace's ``config/``
+(pip editable installs). The arm, scenes and platforms are the description package's.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from picking_description import default_urdf, scene_path
+
+#: The planner's parameter files, in the order picking-stack gives them.
+PLANNER_FILES = ('planner.yaml', 'pick_cycle.yaml')
+
+
+def config_dir() -> Path:
+    """The folder of the nodes' parameter files; FileNotFoundError when none is found."""
+    env = os.environ.get('PICKING_CONFIG')
+    if env:
+        return Path(env)
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        share = Path(get_package_share_directory('picking_bringup')) / 'config'
+        if (share / 'planner.yaml').exists():
+            return share
+    except Exception:  # noqa: BLE001 - no ament index (a plain pip install): the source tree
+        pass
+    for parent in Path(__file__).resolve().parents:
+        if (parent / 'config' / 'planner.yaml').exists():
+            return parent / 'config'
+    raise FileNotFoundError('cannot find the parameter files (config/planner.yaml); set PICKING_CONFIG to their folder')
+
+
+def shipped_harvest(config=None, **overrides):
+    """The :class:`~picking_core.harvest.Harvest` the shipped planner plans with (``overrides``: planner
+    parameters on top, e.g. an arm's own ``box_position``)."""
+    from picking_core.platform import load_harvest
+    folder = Path(config) if config else config_dir()
+    return load_harvest(default_urdf(), [folder / name for name in PLANNER_FILES], **overrides)
+
+
+def shipped_orchard(n, seed=0):
+    """A seeded orchard tree of ``n`` apples in front of the shipped arm in its workcell
+    (:func:`picking_core.orchard.orchard_tree`)."""
+    from picking_core.collision import Scene
+    from picking_core.kinematics import ArmModel
+    from picking_core.orchard import orchard_tree
+    from picking_core.pick_cycle import HOME_POSITIONS
+    return orchard_tree(n, seed, ArmModel.from_urdf(default_urdf()), Scene.from_yaml(scene_path('workcell')),
+                        HOME_POSITIONS)

@@ -1,0 +1,402 @@
+"""``picking-stack``: bring one arm up (simulator, controller, planner) and take it down again.
+
+There is no launch system here: this is the one command that starts the three nodes with the
+shipped parameter files, each in its own process, in one namespace. It waits until the
+controller holds the arm and the planner listens, then keeps them running until Ctrl-C (or
+``--for`` seconds), stops each by its process id and reports its exit code. The node logs go
+to ``--log-dir`` (and to the terminal with ``--show-logs``).
+
+    picking-stack                                  # one arm in the root namespace, until Ctrl-C
+    picking-stack --ns /arm2 -p picking_controller:update_rate:=250.0
+    picking-stack --platform                       # every arm of picking_description/platforms/platform.yaml and picking-harvester
+
+:class:`Stack` is the same bring-up for Python: the demo, the system tests and the benchmarks
+start the arm through it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+#: The nodes in start order: their executable, ROS node name and parameter files in config/.
+NODES = {
+    'picking-sim': ('picking_sim', ('sim.yaml',)),
+    'picking-controller': ('picking_controller', ('controller.yaml',)),
+    'picking-planner': ('picking_planner', ('planner.yaml', 'pick_cycle.yaml')),
+}
+BIN = Path(sys.executable).parent
+
+
+class NodeProcess:
+    """One node as a child process, its output in a log file (streamed to the terminal on request).
+
+    Every process started is listed in ``NodeProcess.started`` with the time it stopped (None
+    while it runs), so that a failing test can show the logs of those that ran during it.
+    """
+
+    started = []
+
+    def __init__(self, name, args, log_path, echo=False):
+        self.name = name
+        self.log_path = Path(log_path)
+        self.log = open(self.log_path, 'w')
+        self.proc = subprocess.Popen([str(BIN / name), *args], stdout=subprocess.PIPE if echo else self.log,
+                                     stderr=subprocess.STDOUT, env=os.environ.copy(), text=echo or None)
+        self._echo = None
+        if echo:
+            self._echo = threading.Thread(target=self._copy_output, daemon=True)
+            self._echo.start()
+        self.stopped_at = None
+        NodeProcess.started.append(self)
+
+    def _copy_output(self):
+        for line in self.proc.stdout:
+            self.log.write(line)
+            self.log.flush()
+            print(f'[{self.name}] {line}', end='', flush=True)
+
+    @property
+    def pid(self):
+        return self.proc.pid
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def stop(self, sig=signal.SIGINT, timeout=10.0):
+        """Signal by pid and wait; returns the exit code (None if it had to be killed)."""
+        return stop_all([self], sig, timeout)[0]
+
+    def signal(self, sig):
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+
+    def reap(self, deadline):
+        """Wait until ``deadline`` (monotonic s), then kill; the exit code, None if killed.
+        A node still running is first asked for its threads' stacks (SIGUSR1: the nodes'
+        faulthandler writes them to the log), so that a hang shows where it hung."""
+        killed = False
+        try:
+            self.proc.wait(max(deadline - time.monotonic(), 0.0))
+        except subprocess.TimeoutExpired:
+            self.proc.send_signal(signal.SIGUSR1)
+            try:
+                self.proc.wait(1.0)
+            except subprocess.TimeoutExpired:
+                pass
+            self.proc.kill()
+            self.proc.wait()
+            killed = True
+        if self._echo is not None:
+            self._echo.join(timeout=2.0)
+        self.log.close()
+        if self.stopped_at is None:
+            self.stopped_at = time.monotonic()
+        return None if killed else self.proc.returncode
+
+    def output(self):
+        if not self.log.closed:
+            self.log.flush()
+        return self.log_path.read_text(errors='replace')
+
+
+def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
+    """Signal every process by pid at once, as Ctrl-C in a terminal does, then wait for them all
+    within one ``timeout``; a process still running then is killed. Returns the exit codes in
+    order (None for a killed one)."""
+    for p in processes:
+        p.signal(sig)
+    deadline = time.monotonic() + timeout
+    return [p.reap(deadline) for p in processes]
+
+
+#: s without a joint_commands message before :meth:`Stack.wait_ready` subscribes again.
+RESUBSCRIBE = 10.0
+_probe = []
+_probe_lock = threading.Lock()
+
+
+def probe_node():
+    """This process's node for readiness checks, in a ROS context of its own, made once and
+    shut down at exit: checks come and go without making and unmaking DDS participants."""
+    with _probe_lock:
+        if not _probe:
+            import atexit
+
+            import rclpy
+            context = rclpy.Context()
+            rclpy.init(context=context)
+            node = rclpy.create_node(f'picking_stack_{os.getpid()}', context=context)
+
+            def close():
+                node.destroy_node()
+                rclpy.try_shutdown(context=context)
+            atexit.register(close)
+            _probe.append(node)
+        return _probe[0]
+
+
+class Stack:
+    """Simulator, controller and planner in namespace ``ns``, each with its files from config/.
+
+    ``args`` maps an executable (``'picking-sim'``, ...) to extra ROS arguments (``['-p',
+    'update_rate:=250.0']``); ``files`` to the parameter files it gets instead of the shipped ones.
+    Node logs go to ``log_dir/<ns>/<executable>.<n>.log`` (``n`` counts that node's starts).
+    """
+
+    def __init__(self, ns='/', log_dir='log/stack', args=None, files=None, config=None, echo=False):
+        from .shipped import config_dir
+        self.ns = '/' + ns.strip('/')
+        self.config = Path(config) if config else config_dir()
+        self.log_dir = Path(log_dir) / (self.ns.strip('/') or 'root')
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.args = {name: list((args or {}).get(name, ())) for name in NODES}
+        self.files = {name: tuple((files or {}).get(name, NODES[name][1])) for name in NODES}
+        self.echo = echo
+        self.starts = dict.fromkeys(NODES, 0)
+        self.nodes = {}
+        for name in NODES:
+            self.start(name)
+
+    def start(self, name):
+        """(Re)start one node; returns its :class:`NodeProcess`."""
+        args = ['--ros-args', '-r', f'__ns:={self.ns}']
+        for f in self.files[name]:
+            args += ['--params-file', str(self.config / f)]
+        self.starts[name] += 1
+        self.nodes[name] = NodeProcess(name, args + self.args[name],
+                                       self.log_dir / f'{name}.{self.starts[name]}.log', echo=self.echo)
+        return self.nodes[name]
+
+    @property
+    def sim(self):
+        return self.nodes['picking-sim']
+
+    @property
+    def controller(self):
+        return self.nodes['picking-controller']
+
+    @property
+    def planner(self):
+        return self.nodes['picking-planner']
+
+    @property
+    def processes(self):
+        return [self.planner, self.controller, self.sim]
+
+    def alive(self):
+        return {name: p.alive() for name, p in self.nodes.items()}
+
+    def wait_ready(self, timeout=60.0):
+        """Until the controller holds the arm (joint_commands flow) and the planner listens
+        (subscribes to its goal topics, serves its actions); RuntimeError if a node exits or time runs out.
+
+        Asks the ROS graph and reads the newest reference through this process's probe node
+        (:func:`probe_node`), so that it works whether or not the caller has initialised rclpy.
+        A subscription that hears nothing for RESUBSCRIBE seconds is made again."""
+        from rclpy.action.graph import get_action_names_and_types
+        from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import JointState
+
+        node = probe_node()
+        name = f'{self.ns.rstrip("/")}/{{}}'.format
+        since = time.time()
+        sub, subscribed, holding = None, 0.0, False
+        try:
+            end = time.monotonic() + timeout
+            while True:
+                if sub is None or (not holding and time.monotonic() - subscribed > RESUBSCRIBE):
+                    if sub is not None:
+                        node.destroy_subscription(sub)
+                    sub = node.create_subscription(JointState, name('joint_commands'), lambda _: None,
+                                                   qos_profile_sensor_data)
+                    subscribed = time.monotonic()
+                while (got := sub.handle.take_message(JointState, False)) is not None:
+                    stamp = got[0].header.stamp
+                    holding = holding or stamp.sec + stamp.nanosec * 1e-9 > since
+                listening = all(node.count_subscribers(name(t)) > 0 for t in ('goal_pose', 'goal_path', 'pick_target')) \
+                    and name('pick') in dict(get_action_names_and_types(node))
+                if holding and listening:
+                    return
+                dead = [n for n, up in self.alive().items() if not up]
+                if dead:
+                    raise RuntimeError(f'{", ".join(dead)} exited while the arm was coming up '
+                                       f'(see {self.log_dir})')
+                if time.monotonic() > end:
+                    raise RuntimeError(f'the arm in {self.ns} was not up after {timeout:g} s: '
+                                       f'{"holding" if holding else "no joint_commands"}, '
+                                       f'{"planner listening" if listening else "no planner listening"} '
+                                       f'(see {self.log_dir})')
+                time.sleep(0.05)
+        finally:
+            if sub is not None:
+                node.destroy_subscription(sub)
+
+    def stop(self, timeout=10.0):
+        """Stop the three nodes at once (SIGINT, by pid); their exit codes by executable name."""
+        procs = self.processes
+        return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
+
+
+#: Several arms on one computer of 2 cores: their loops at rates that keep their deadlines together, the
+#: feedback watchdog allowing for a simulator that the busy host holds up for over half a second, and
+#: plans starting a second later (a long harvest plan takes seconds to reach a busy controller).
+SHARED_RATES = {'picking-sim': ['-p', 'servo_rate:=250.0', '-p', 'publish_rate:=50.0'],
+                'picking-controller': ['-p', 'update_rate:=100.0', '-p', 'state_timeout:=1.0'],
+                'picking-planner': ['-p', 'start_delay:=1.0']}
+
+
+def ros_value(v):
+    """A parameter value as ``-p name:=value`` takes it (lists in YAML's flow style)."""
+    if isinstance(v, (list, tuple)):
+        return '[' + ','.join(ros_value(x) for x in v) + ']'
+    return str(v).lower() if isinstance(v, bool) else str(v)
+
+
+class PlatformStack:
+    """Every arm of a platform (``picking_description/platforms/platform.yaml``, one of its layouts), each a :class:`Stack` in
+    its namespace under ``ns`` with its own planner parameters, and ``picking-harvester`` in ``ns``.
+    ``args`` as for :class:`Stack`, for every arm (default: :data:`SHARED_RATES` with more than one arm)."""
+
+    def __init__(self, platform_file=None, layout=None, ns='/', log_dir='log/stack', args=None, echo=False,
+                 config=None):
+        from picking_core.platform import Platform
+        from picking_description import platform_path, scene_path
+        self.file = Path(platform_file) if platform_file else platform_path()
+        self.platform = Platform.from_yaml(self.file, layout)
+        self.ns = '/' + ns.strip('/')
+        if args is None:
+            args = SHARED_RATES if len(self.platform.arms) > 1 else {}
+        self.arms = []
+        # Each arm's scene: the ground and the platform (its own fruit box is not the single arm's).
+        scene = ['-p', f'scene_file:={scene_path("platform_arm")}']
+        for m in self.platform.arms:
+            extra = {name: list(a) for name, a in args.items()}
+            extra['picking-planner'] = list(extra.get('picking-planner', [])) + scene
+            extra['picking-sim'] = list(extra.get('picking-sim', [])) + scene
+            for k, v in m.params.items():
+                extra['picking-planner'] += ['-p', f'{k}:={ros_value(v)}']
+            self.arms.append(Stack(f'{self.ns.rstrip("/")}/{m.namespace}', log_dir, args=extra, config=config,
+                                   echo=echo))
+        self.log_dir = Path(log_dir) / (self.ns.strip('/') or 'root')
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        harvester = ['--ros-args', '-r', f'__ns:={self.ns}', '-p', f'platform_file:={self.file}']
+        if layout:
+            harvester += ['-p', f'layout:={layout}']
+        self.harvester = NodeProcess('picking-harvester', harvester, self.log_dir / 'picking-harvester.log', echo=echo)
+
+    @property
+    def processes(self):
+        return [self.harvester] + [p for s in self.arms for p in s.processes]
+
+    def alive(self):
+        out = {'picking-harvester': self.harvester.alive()}
+        for s in self.arms:
+            out.update({f'{s.ns}/{n}': up for n, up in s.alive().items()})
+        return out
+
+    def wait_ready(self, timeout=90.0):
+        for s in self.arms:
+            s.wait_ready(timeout)
+        if not self.harvester.alive():
+            raise RuntimeError(f'picking-harvester exited (see {self.log_dir})')
+
+    def stop(self, timeout=10.0):
+        procs = self.processes
+        return {f'{p.name} ({p.pid})': code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
+
+
+def overrides(items):
+    """``-p node:name:=value`` items as extra ROS arguments per executable."""
+    by_node = {node: exe for exe, (node, _) in NODES.items()}
+    out = {}
+    for item in items:
+        node, sep, assignment = item.partition(':')
+        if not sep or node not in by_node or ':=' not in assignment:
+            raise ValueError(f'-p takes NODE:NAME:=VALUE with NODE one of {sorted(by_node)}, got {item!r}')
+        out.setdefault(by_node[node], []).extend(['-p', assignment])
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog='picking-stack', description=__doc__.split('\n\n')[0],
+                                     epilog='Examples:\n  picking-stack\n  picking-stack --ns /arm2 --domain 7\n'
+                                            '  picking-stack -p picking_controller:update_rate:=250.0 --for 10\n  picking-stack --paper',
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--ns', default='/', help='namespace of the arm (default: %(default)s)')
+    parser.add_argument('--domain', type=int, help='ROS_DOMAIN_ID (default: the environment\'s, else 0)')
+    parser.add_argument('-p', dest='params', action='append', default=[], metavar='NODE:NAME:=VALUE',
+                        help='a parameter override for one node, e.g. picking_sim:noise_std:=0.001 (repeatable)')
+    parser.add_argument('--log-dir', type=Path, default=Path('log/stack'), help='node logs (default: %(default)s)')
+    parser.add_argument('--show-logs', action='store_true', help='stream the node logs to this terminal too')
+    parser.add_argument('--for', dest='duration', type=float, metavar='S',
+                        help='stop after S seconds up (default: run until Ctrl-C)')
+    parser.add_argument('--timeout', type=float, default=60.0, help='s to wait for the arm to come up')
+    parser.add_argument('--platform', nargs='?', const='', metavar='FILE',
+                        help='every arm of a platform (default file: picking_description/platforms/platform.yaml) in its namespace under --ns, '
+                             'and picking-harvester, the coordinator of their harvest')
+    parser.add_argument('--layout', help='the layout of the platform file (default: its default)')
+    parser.add_argument('--paper', action='store_true',
+                        help="the paper's interpolation methods (config/paper_methods.yaml) instead of the shipped "
+                             'jerk-limited, blended ones')
+    args = parser.parse_args(argv)
+    try:
+        extra = overrides(args.params)
+    except ValueError as exc:
+        parser.error(str(exc))
+    if args.domain is not None:
+        if not 0 <= args.domain <= 232:
+            parser.error(f'--domain must be 0-232, got {args.domain}')
+        os.environ['ROS_DOMAIN_ID'] = str(args.domain)
+    # The network rule: DDS discovery stays on this machine unless the caller chose otherwise.
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    stopping = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stopping.set())
+    files = {'picking-planner': NODES['picking-planner'][1] + ('paper_methods.yaml',)} if args.paper else None
+    if args.platform is not None:
+        try:
+            stack = PlatformStack(args.platform or None, args.layout, args.ns, args.log_dir, args=extra or None,
+                                  echo=args.show_logs)
+        except (OSError, ValueError) as exc:
+            parser.error(str(exc))
+        started = {f'{p.name} ({p.log_path.parent.name})': p for p in stack.processes}
+    else:
+        stack = Stack(args.ns, args.log_dir, args=extra, files=files, echo=args.show_logs)
+        started = stack.nodes
+    for name, p in started.items():
+        print(f'picking-stack: started {name} (pid {p.pid})', flush=True)
+    code = 0
+    try:
+        stack.wait_ready(args.timeout)
+        what = (f'{len(stack.arms)} arms and picking-harvester in {stack.ns} are' if args.platform is not None
+                else f'the arm in {stack.ns} is')
+        print(f'picking-stack: {what} up (domain {os.environ.get("ROS_DOMAIN_ID", "0")}): '
+              f'the controller holds it, the planner listens. Logs: {stack.log_dir}. Ctrl-C stops it.', flush=True)
+        end = time.monotonic() + args.duration if args.duration is not None else float('inf')
+        while not stopping.is_set() and time.monotonic() < end:
+            dead = [n for n, up in stack.alive().items() if not up]
+            if dead:
+                print(f'picking-stack: {", ".join(dead)} exited; stopping the rest', file=sys.stderr)
+                code = 1
+                break
+            stopping.wait(0.2)
+    except RuntimeError as exc:
+        print(f'picking-stack: {exc}', file=sys.stderr)
+        code = 1
+    finally:
+        codes = stack.stop()
+        for name, c in codes.items():
+            pid = f' (pid {stack.nodes[name].pid})' if name in getattr(stack, 'nodes', {}) else ''
+            print(f'picking-stack: stopped {name}{pid}: exit code {c}', flush=True)
+    return code if all(c == 0 for c in codes.values()) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

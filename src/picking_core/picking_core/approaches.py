@@ -1,0 +1,286 @@
+"""Picking around branches: when the requested approach is blocked, other IK branches, then other
+directions within a cone (pure core of the pick cycle's search).
+
+A blocked or unreachable approach is not a refused apple. The requested grasp is tried on the arm's
+other IK branches (elbow, shoulder or wrist the other way: a line that would jump on one branch, or an
+elbow in a branch, may be clear on another): first when it failed kinematically, last when it was
+blocked. The grasp axis (the tool's z, into the apple) is tilted by up to ``approach_cone`` in every
+direction around it, and the gripper rolled about it; each candidate is first screened cheaply (its
+approach and lift lines by IK every centimetre, checked for collisions and joint jumps), and only the
+candidates that pass are planned as whole cycles and checked densely. The quickest clear cycle among
+the first few wins; an apple with none is refused with the obstacle that blocked most candidates.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .collision import Allowed
+from .kinematics import Unreachable
+from .planning.joint_path import NoPath, rrt_connect
+
+#: The joint moves of the cycle that may go around an obstacle (pick_cycle.DETOURS).
+DETOURS = ('P0 home', 'P1 approach', 'P4 above the box', 'P0 back home')
+#: rad: the tilts tried, in steps up to the cone.
+TILT_STEP = np.radians(15.0)
+#: Directions of tilt around the grasp axis.
+AZIMUTHS = 8
+#: rad: the gripper's rolls about the tilted axis (the fingers' plane turned).
+ROLLS = np.radians([0.0, 60.0, -60.0])
+#: Screened candidates planned as whole cycles; the quickest clear one of them is taken.
+MAX_CYCLES = 4
+#: Blocked candidates whose obstacle is named (the one that blocked most is given in a refusal).
+NAMED = 12
+#: m between the IK points of a screened line.
+SCREEN_STEP = 0.01
+#: rad: a joint moving further between two screened points breaks the line (another IK branch).
+SCREEN_JUMP = 0.3
+#: Candidates whose lines are checked for collisions at once, quickest first (a batch amortises the checker's
+#: numpy calls; stopping once enough have passed skips the rest).
+SCREEN_BATCH = 12
+#: Every this many points of the screened lines (SCREEN_STEP apart) are checked first.
+SCREEN_COARSE = 4
+
+
+class Blocked(Unreachable):
+    """No clear cycle: the reason names the obstacle, where and when (a refused apple, as Unreachable)."""
+
+
+class BrakeBlocked(Blocked):
+    """The arm would hit something while it brakes from where the plan starts, before any way around."""
+
+
+@dataclass(frozen=True)
+class Approach:
+    """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad);
+    ``branch``: the joints at P1 (the start of the line to the apple), None for the IK solution
+    nearest home."""
+
+    pose: np.ndarray
+    tilt: float
+    roll: float
+    branch: np.ndarray | None = None
+
+    def words(self):
+        if self.branch is not None:
+            return 'approached as requested on another IK branch of the arm'
+        return (f'approached {np.degrees(self.tilt):.0f}° off the requested axis, rolled '
+                f'{np.degrees(self.roll):+.0f}°')
+
+
+def other_branches(cycle, approach):
+    """``approach`` reached on each other IK branch at its P1 within the joint limits (the one nearest
+    home is the default), the nearest home first."""
+    arm = cycle.arm
+    P1 = cycle.key_poses(approach.pose)['P1']
+    home = np.asarray(cycle.s.home_positions, float)
+    try:
+        default = arm.check_reachable(P1, seed=home)
+    except Unreachable:
+        return []
+    sols = [q for q in arm.ik_all(P1) if arm.within_limits(q) and np.abs(q - default).max() > 1e-6]
+    sols.sort(key=lambda q: float(np.abs(q - home).max()))
+    return [Approach(approach.pose, approach.tilt, approach.roll, q) for q in sols]
+
+
+def candidates(T, cone):
+    """The grasp poses to try for an apple at ``T`` (4x4): the requested one first, then every tilt
+    (within ``cone``, rad), direction and roll, the least changed first."""
+    T = np.asarray(T, float)
+    tilts = np.arange(TILT_STEP, cone + 1e-9, TILT_STEP) if cone > 0 else np.zeros(0)
+    # (tilt, azimuth, roll) of each candidate after the requested pose: its rolls, then each tilt's
+    # directions and rolls.
+    turns = [(0.0, 0.0, roll) for roll in ROLLS[1:]]
+    turns += [(tilt, 2 * np.pi * k / AZIMUTHS, roll) for tilt in tilts for roll in ROLLS for k in range(AZIMUTHS)]
+    out = [Approach(T, 0.0, 0.0)]
+    if turns:
+        tilt, azimuth, roll = np.array(turns).T
+        # Tilting about the axis (-sin, cos, 0) of the grasp frame moves its z toward the azimuth; then the roll.
+        axis = np.stack([-np.sin(azimuth), np.cos(azimuth), np.zeros_like(azimuth)], axis=1)
+        R = (Rotation.from_rotvec(tilt[:, None] * axis)
+             * Rotation.from_rotvec(np.outer(roll, [0.0, 0.0, 1.0]))).as_matrix()
+        poses = np.repeat(T[None], len(turns), axis=0)
+        poses[:, :3, :3] = T[:3, :3] @ R
+        out += [Approach(P, float(t), float(r)) for P, t, r in zip(poses, tilt, roll)]
+    return out
+
+
+def clear_cycle(cycle, plan_one, T_apple):
+    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch)`` plans
+    the cycle for a grasp pose (``branch``: the joints at its P1, None for the default); ``cycle``
+    (:class:`~picking_core.pick_cycle.PickCycle`) gives the settings, the arm and the checker.
+    Raises :class:`Blocked` (or Unreachable) with the reason."""
+    s, checker = cycle.s, cycle.checker
+    allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
+    requested = candidates(T_apple, 0.0)[0]
+    # Screened first, with a checker: a requested approach whose lines hit something is not planned in full
+    # (and what it hits is looked up only for a refusal's words).
+    hit = screen(cycle, [requested], allowed)[1] if checker is not None else []
+    first = None                                  # why the requested approach failed, unless it hit something
+    if not hit:
+        try:
+            plan, contact = clear_plan(cycle, lambda detours=None: plan_one(T_apple, detours), allowed)
+            if contact is None:
+                return plan
+            first = Blocked(f'the requested approach hits {contact}')
+        except Unreachable as exc:
+            first = exc
+    # The requested grasp on the arm's other IK branches and (with a cone) other grasps: the branches first
+    # when the grasp failed kinematically (it is reachable as asked), else the cone's nearby grasps first
+    # (another branch swings the arm far round: a longer cycle).
+    blockers, screened_out = Counter(), []
+    tries = [other_branches(cycle, requested)]
+    if s.approach_cone > 0.0:
+        kinematic = first is not None and not isinstance(first, Blocked)
+        tries.insert(len(tries) if kinematic else 0, candidates(T_apple, s.approach_cone)[1:])
+    for approaches in tries:
+        passed, blocked = screen(cycle, approaches, allowed, enough=MAX_CYCLES)
+        screened_out += blocked
+        for approach in passed[:MAX_CYCLES]:
+            def make(detours=None, a=approach):
+                return plan_one(a.pose, detours, a.branch)
+            try:
+                plan, contact = clear_plan(cycle, make, allowed)
+            except Unreachable:
+                continue
+            if contact is None:
+                plan.extra.update(approach=approach.words(), approach_tilt=approach.tilt,
+                                  approach_roll=approach.roll)
+                return plan
+            blockers[contact.obstacle] += 1
+    within = f'within {np.degrees(s.approach_cone):.0f}°' if s.approach_cone > 0.0 else 'on any IK branch'
+    if first is None:
+        contact = _named(checker, hit, allowed)[1]
+        first = Blocked(f'the requested approach hits {contact}' if contact else 'the requested approach is blocked')
+    blockers.update(_named(checker, screened_out, allowed)[0])
+    if blockers:
+        name, _ = blockers.most_common(1)[0]
+        raise Blocked(f'{name} blocks every approach {within} ({first})')
+    if s.approach_cone <= 0.0:
+        raise first
+    raise Unreachable(f'{first}; no other approach {within} reaches it either') from None
+
+
+def clear_plan(cycle, make, allowed):
+    """``(plan, contact)``: ``make(detours)``'s plan and its first contact (None: clear). A joint move
+    that hits something (one of the cycle's DETOURS) goes around it through the waypoints of a
+    collision-free joint path (RRT-Connect, shortcut), and the plan is made again with them."""
+    checker = cycle.checker
+    plan = make()
+    if checker is None:
+        return plan, None
+    contact = check(checker, plan, allowed)
+    detours = {}
+    while contact is not None and contact.part in DETOURS and contact.part not in detours:
+        seg = next(x for x in plan.segments if x.label == contact.part)
+        ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :cycle.arm.dof]
+        try:
+            path = rrt_connect(lambda q: checker.colliding(q, allowed), ends[0], ends[1], cycle.arm.lower,
+                               cycle.arm.upper)
+        except NoPath:
+            break
+        if len(path) <= 2:                           # the straight way is clear: the timed move is not
+            break
+        detours[contact.part] = list(path[1:-1])
+        plan = make(detours)
+        contact = check(checker, plan, allowed)
+    if contact is None and detours:
+        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoint{"s" * (len(w) != 1)}'
+                                          for label, w in detours.items())
+    return plan, contact
+
+
+def check(checker, plan, allowed):
+    """The first contact of ``plan`` (its arm joints), with the part of the cycle it happens in."""
+    contact = checker.check(plan.trajectory, allowed)
+    if contact is None:
+        return None
+    where = next((seg.label for seg in plan.segments if seg.start <= contact.time <= seg.start + seg.duration), '')
+    return PartContact(contact, where)
+
+
+class PartContact:
+    """A contact and the part of the cycle it happens in."""
+
+    def __init__(self, contact, part):
+        self.contact, self.part = contact, part
+        self.obstacle = contact.obstacle
+
+    def __str__(self):
+        return f'{self.contact} ({self.part})' if self.part else str(self.contact)
+
+
+def screen(cycle, approaches, allowed, enough=None):
+    """``(passed, blocked)``: the approaches whose approach and lift lines are reachable every
+    SCREEN_STEP without a jump and clear, quickest first by an estimate (the slowest joint's travel
+    from home to P1 and from P3 back, at full speed); and the joints along the lines of those that
+    only a collision stopped (for :func:`_named`), one (n, dof) array each. All candidates' IK at
+    once; their collision checks a batch at a time, quickest first, until ``enough`` have passed
+    (None: all): only the first few passed are planned, so the rest need no check."""
+    arm, checker = cycle.arm, cycle.checker
+    if not approaches:
+        return [], []
+    home = np.asarray(cycle.s.home_positions, float)
+    keys = [cycle.key_poses(a.pose) for a in approaches]
+    P1, P2, P3 = (np.array([k[name] for k in keys]) for name in ('P1', 'P2', 'P3'))
+    q1, ok1, _ = arm.ik_batch(P1, home)
+    for c, a in enumerate(approaches):
+        if a.branch is not None:
+            q1[c], ok1[c] = a.branch, True
+    # Every candidate's lines are as long as the settings make them: the same number of points. The cycle's
+    # lines keep the grasp's orientation (P1 and P3 are P2 moved back along the grasp axis and up).
+    n1, n3 = (max(2, int(np.ceil(d / SCREEN_STEP - 1e-9)) + 1) for d in (cycle.s.approach_distance, cycle.s.lift_height))
+    f = np.concatenate([np.linspace(0.0, 1.0, n1), 1.0 + np.linspace(0.0, 1.0, n3)[1:]])
+    n = len(f)
+    a, b = np.where(f <= 1.0, 0, 1), np.clip(f - np.where(f <= 1.0, 0.0, 1.0), 0.0, 1.0)
+    starts = np.stack([P1[:, :3, 3], P2[:, :3, 3]], axis=1)[:, a]             # (C, n, 3)
+    ends = np.stack([P2[:, :3, 3], P3[:, :3, 3]], axis=1)[:, a]
+    P = np.repeat(P2[:, None], n, axis=1)
+    P[:, :, :3, 3] = starts + b[None, :, None] * (ends - starts)
+    q, ok, _ = arm.ik_batch(P.reshape(-1, 4, 4), np.repeat(np.where(ok1[:, None], q1, home), n, axis=0))
+    q, ok = q.reshape(len(keys), n, -1), ok.reshape(len(keys), n) & ok1[:, None]
+    good = ok.all(axis=1)
+    with np.errstate(invalid='ignore'):
+        good &= np.nan_to_num(np.abs(np.diff(q, axis=1)), nan=np.inf).max(axis=(1, 2)) <= SCREEN_JUMP
+    vmax = np.where(np.isfinite(arm.max_velocity), arm.max_velocity, 1.0)
+    with np.errstate(invalid='ignore'):
+        cost = np.max(np.abs(q[:, 0] - home) / vmax, axis=1) + np.max(np.abs(home - q[:, -1]) / vmax, axis=1)
+    order = [c for c in np.argsort(cost, kind='stable') if good[c]]
+    if checker is None:
+        return [approaches[c] for c in order], []
+    passed, blocked = [], []
+    # A few points of each line first (a candidate blocked is mostly blocked at several), the rest only for
+    # the candidates those leave: the same points checked in all, most blocked candidates at a third of them.
+    coarse = np.zeros(n, bool)
+    coarse[::SCREEN_COARSE] = True
+    for first in range(0, len(order), SCREEN_BATCH):
+        rows = np.array(order[first:first + SCREEN_BATCH])
+        hit = np.zeros(len(rows), bool)
+        for points in (coarse, ~coarse):
+            left = np.nonzero(~hit)[0]
+            if not len(left) or not points.any():
+                continue
+            sub = q[rows[left]][:, points]
+            hit[left] = checker.colliding(sub.reshape(-1, q.shape[-1]), allowed).reshape(len(left), -1).any(axis=1)
+        passed += [approaches[c] for c in rows[~hit]]
+        blocked += [q[c] for c in rows[hit]]
+        if enough is not None and len(passed) >= enough:
+            break
+    return passed, blocked
+
+
+def _named(checker, blocked, allowed):
+    """``(blockers, first)``: a Counter of the obstacles that stopped the first NAMED of the ``blocked``
+    lines (joints along each, from :func:`screen`), and the first line's contact (None without any):
+    the words of a refusal, looked up only when one is made."""
+    blockers, first = Counter(), None
+    for q in blocked[:NAMED]:
+        contact = checker.first_contact(q, allowed=allowed)
+        if contact is not None:
+            blockers[contact.obstacle] += 1
+            first = contact if first is None else first
+    return blockers, first

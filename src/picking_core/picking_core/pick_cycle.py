@@ -1,0 +1,564 @@
+"""The apple pick-and-place cycle of the paper's Table 1, as one plan (pure core).
+
+P0 home -> P1 approach (pre-grasp pose, ``approach_distance`` back along the
+tool's z axis; a joint-space LSPB move) -> P2 at the apple (a straight Cartesian
+line) -> grasp (a dwell while the gripper closes) -> P3 lift and detach (a short
+line up, or an arc that lifts and pulls back) -> P4 above the fruit box
+(joint-space via-point LSPB through a lifted midpoint for the long transfer) -> P5 into the
+box (a line down) -> release (a dwell while the gripper opens) -> back to P0
+(via-point LSPB up through P4).
+
+With ``blend`` the arm passes P1, P3 and P4 at speed instead of stopping there, and
+``blend_radius`` (at the apple) and ``box_blend_radius`` (over the box) round those
+corners (see :class:`PickSettings`).
+
+The gripper is a joint of the plan (``gripper_joint``, the finger opening in m),
+so grasp and release reach every subscriber of ``joint_states`` with their times.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import approaches, geometry, trajectory
+from .kinematics import Unreachable
+from .planning import JOINT_METHODS, Plan
+from .planning.remembered import Remembered
+
+#: The shipped arm's home, rad: P0 of the pick cycle (tool level, facing the tree), where the simulator
+#: starts; and its gripper's opening when open, m.
+HOME_POSITIONS = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
+GRIPPER_OPEN = 0.09
+#: The gripper's joint in the pick cycle's plans (its finger opening, m).
+GRIPPER_JOINT = 'gripper_joint'
+LIFT_METHODS = ('line', 'arc')
+#: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
+BLEND_SPEEDS = (0.0, 0.3, 0.6, 0.9)
+TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
+
+
+@dataclass(frozen=True)
+class PickSettings:
+    """The cycle's geometry and timing (config/pick_cycle.yaml). SI units, radians.
+
+    Attributes
+    ----------
+    home_positions : list of float
+        P0, rad (one per arm joint).
+    approach_distance : float
+        P1 lies this far back from the apple along the tool's z axis, m.
+    lift_height : float
+        P3 lies this far above the apple, m.
+    lift_method : str
+        ``line`` (straight up) or ``arc`` (up and back along a quarter-arc: twists the
+        stem less).
+    approach_method : str
+        Joint-space profile of the moves to P0 and P1: ``lspb`` (the paper's linear
+        segments with parabolic blends, the fastest of the paper's profiles),
+        ``quintic``, ``cubic`` or ``optimal`` (jerk-limited and time-optimal, Ruckig).
+    grasp_time, release_time : float
+        Dwells while the gripper closes and opens, s.
+    box_position : list of float
+        P5, the drop point in the box, m (base frame).
+    box_drop_height : float
+        P4 lies this far above P5, m.
+    place_orientation_rpy : list of float
+        Tool orientation over the box, roll-pitch-yaw in rad (default: pointing down).
+    place_yaw_free : bool
+        An apple drops the same whatever the gripper's turn about the vertical: let
+        the planner choose that turn (in 30 degree steps) for the quickest transfer
+        and return.
+    transfer_method : str
+        ``via_lspb``, ``quintic_via`` or ``optimal`` for the transfer and the return.
+    transfer_lift : float
+        The transfer's via point is the joint-space midpoint with the shoulder lifted
+        back by this much, rad (clearance over the canopy and the box rim).
+    gripper_open, gripper_closed : float
+        Finger opening, m.
+    blend : bool
+        Pass P1, P3 and P4 at speed instead of stopping there: the approach flows into
+        the line to the apple, the lift into the transfer, the transfer into the line
+        into the box, and the way back rises straight out of the box (a line to P4) into
+        the move home (each junction at the quickest of BLEND_SPEEDS, the lines straight).
+        Needs the ``optimal`` approach and transfer methods and the planner's
+        ``cartesian_profile: optimal`` (jerk-limited: the joints' velocity and
+        acceleration stay continuous through the blends).
+    blend_radius : float
+        With ``blend``: the joint moves meet the lines this far from P1 and P3, m (0: at
+        those points). The lines to the apple and up from it are that much shorter, and
+        each joint move rounds its corner: the approach flows into the line to the apple,
+        and the transfer rises the rest of the way to P3 while the waist starts its turn.
+        Less than half of ``approach_distance`` and ``lift_height``, so that most of every
+        line at the apple stays straight (the apple is pulled straight off for at least
+        half the lift). How close the tool passes each corner and what the cycle gains are
+        in ``docs/benchmarks.md`` (row 7).
+    box_blend_radius : float
+        With ``blend``: the transfer meets the line into the box, and the rise out of the box
+        meets the next move, this far below P4, m (0: at P4). The line into the box is the
+        slow part of the place and the waist swings its limit all through the transfer: a
+        large radius (most of ``box_drop_height``) lowers the apple during the swing and
+        leaves the last centimetres above the drop point straight down. Less than
+        ``box_drop_height``; the rounded path is checked against the box like every other.
+    approach_cone : float
+        When the requested approach is blocked or out of reach, other grasp axes are tried
+        this far from it, rad (0: only the requested one; see :mod:`picking_core.approaches`).
+    apple_region : float
+        Radius around the apple's centre where touching is allowed (the apple and its stem), m.
+    """
+
+    home_positions: tuple = HOME_POSITIONS
+    approach_distance: float = 0.10
+    lift_height: float = 0.06
+    lift_method: str = 'line'
+    approach_method: str = 'lspb'
+    grasp_time: float = 0.25
+    release_time: float = 0.25
+    box_position: tuple = (0.05, -0.55, 0.30)
+    box_drop_height: float = 0.12
+    place_orientation_rpy: tuple = (np.pi, 0.0, 0.0)
+    place_yaw_free: bool = True
+    transfer_method: str = 'via_lspb'
+    transfer_lift: float = 0.15
+    gripper_open: float = GRIPPER_OPEN
+    gripper_closed: float = 0.055
+    blend: bool = False
+    blend_radius: float = 0.0
+    box_blend_radius: float = 0.0
+    approach_cone: float = float(np.radians(45.0))
+    apple_region: float = 0.06
+
+    def validate(self, arm):
+        """Check every value against the arm; returns self."""
+        if len(self.home_positions) != arm.dof or not np.all(np.isfinite(self.home_positions)):
+            raise ValueError(f'home_positions must be {arm.dof} finite joint values (rad)')
+        if not arm.within_limits(np.asarray(self.home_positions, float)):
+            raise ValueError(f'home_positions {list(self.home_positions)} are outside the joint limits')
+        if not (np.isfinite(self.transfer_lift) and 0.0 <= self.transfer_lift < 1.0):
+            raise ValueError(f'transfer_lift must be in [0, 1) rad, got {self.transfer_lift}')
+        for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f'{name} must be a finite number > 0, got {value}')
+        for name, n in (('box_position', 3), ('place_orientation_rpy', 3)):
+            value = np.asarray(getattr(self, name), float)
+            if value.shape != (n,) or not np.all(np.isfinite(value)):
+                raise ValueError(f'{name} must be {n} finite numbers')
+        if self.approach_method not in JOINT_METHODS:
+            raise ValueError(f'approach_method must be one of {JOINT_METHODS}, got {self.approach_method!r}')
+        if self.lift_method not in LIFT_METHODS:
+            raise ValueError(f'lift_method must be one of {LIFT_METHODS}, got {self.lift_method!r}')
+        if self.transfer_method not in TRANSFER_METHODS:
+            raise ValueError(f'transfer_method must be one of {TRANSFER_METHODS}, got {self.transfer_method!r}')
+        if not 0.0 <= self.gripper_closed < self.gripper_open:
+            raise ValueError('need 0 <= gripper_closed < gripper_open')
+        if not (np.isfinite(self.blend_radius) and self.blend_radius >= 0.0):
+            raise ValueError(f'blend_radius must be a finite number >= 0 m, got {self.blend_radius}')
+        if self.blend_radius > 0.0:
+            if not self.blend:
+                raise ValueError('blend_radius needs blend: true (the joint moves meet the shortened lines at speed)')
+            shortest = min(('approach_distance', self.approach_distance), ('lift_height', self.lift_height),
+                           key=lambda x: x[1])
+            if self.blend_radius >= 0.5 * shortest[1]:
+                raise ValueError(f'blend_radius {self.blend_radius} m must be less than half of every line: '
+                                 f'{shortest[0]} is {shortest[1]} m')
+        if not (np.isfinite(self.box_blend_radius) and 0.0 <= self.box_blend_radius < self.box_drop_height):
+            raise ValueError(f'box_blend_radius must be >= 0 m and less than box_drop_height '
+                             f'({self.box_drop_height} m), got {self.box_blend_radius}')
+        if self.box_blend_radius > 0.0 and not self.blend:
+            raise ValueError('box_blend_radius needs blend: true (the joint moves meet the shortened lines at speed)')
+        if not (np.isfinite(self.approach_cone) and 0.0 <= self.approach_cone <= np.pi / 2):
+            raise ValueError(f'approach_cone must be in [0, pi/2] rad, got {self.approach_cone}')
+        if not (np.isfinite(self.apple_region) and self.apple_region >= 0.0):
+            raise ValueError(f'apple_region must be a finite number >= 0 m, got {self.apple_region}')
+        if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
+            raise ValueError('blend needs approach_method and transfer_method optimal (jerk-limited moves to '
+                             'and from moving states)')
+        return self
+
+
+def _toward(T_from, T_to, distance):
+    """The pose ``distance`` m from ``T_from`` on the straight line to ``T_to``, its orientation
+    turned in proportion (as a line's slerp)."""
+    delta = T_to[:3, 3] - T_from[:3, 3]
+    frac = distance / np.linalg.norm(delta)
+    out = T_from.copy()
+    out[:3, 3] += frac * delta
+    turn = Rotation.from_matrix(T_from[:3, :3].T @ T_to[:3, :3]).as_rotvec()
+    out[:3, :3] = T_from[:3, :3] @ Rotation.from_rotvec(frac * turn).as_matrix()
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _rpy_matrix(rpy):
+    """The rotation matrix of roll, pitch, yaw ``rpy`` (a tuple, rad; fixed axes x, y, z), read-only:
+    the place orientation is a setting, the same for every cycle (scipy takes tens of µs)."""
+    out = Rotation.from_euler('xyz', rpy).as_matrix()
+    out.flags.writeable = False
+    return out
+
+
+#: The gripper's turns about the vertical that the quickest place chooses from: 30 degree steps.
+_PLACE_TURNS = Rotation.from_euler('z', np.radians(np.arange(-180, 180, 30))[:, None]).as_matrix()
+_PLACE_TURNS.flags.writeable = False
+
+
+def _offset(T, local):
+    """Pose ``T`` moved by ``local`` in its own frame."""
+    out = T.copy()
+    out[:3, 3] = T[:3, :3] @ np.asarray(local, float) + T[:3, 3]
+    return out
+
+
+class PickCycle:
+    """Plans Table 1 for one apple with a :class:`~picking_core.planning.Planner`; with a
+    :class:`~picking_core.collision.CollisionChecker`, only cycles clear of its obstacles."""
+
+    def __init__(self, planner, settings=PickSettings(), checker=None):
+        # Remembered: a cycle planned again (a detour, another approach, the next apple) reuses its moves.
+        self.planner = planner if isinstance(planner, Remembered) else Remembered(planner)
+        self.arm = planner.arm
+        self.s = settings
+        self.checker = checker
+
+    def key_poses(self, T_apple):
+        """P1..P5 as 4x4 poses (P0 is a joint configuration)."""
+        s = self.s
+        P2 = np.asarray(T_apple, float)
+        P1 = _offset(P2, [0.0, 0.0, -s.approach_distance])
+        P3 = P2.copy()
+        P3[2, 3] += s.lift_height
+        P5 = np.eye(4)
+        P5[:3, :3] = _rpy_matrix(tuple(s.place_orientation_rpy))
+        P5[:3, 3] = s.box_position
+        P4 = P5.copy()
+        P4[2, 3] += s.box_drop_height
+        return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
+
+    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True):
+        """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
+
+        A harvest chains cycles (:mod:`picking_core.harvest`): ``from_box`` starts at rest in the
+        box, where the cycle before ended, and rises straight out of it into the approach instead
+        of going home first; ``home_after=False`` ends at rest in the box after the release.
+
+        When the requested approach is out of reach or (with a checker) touches an obstacle, other
+        approaches within ``approach_cone`` are tried (:func:`~picking_core.approaches.clear_cycle`;
+        the plan's ``extra`` says which was taken: ``approach`` in words, ``approach_tilt`` and
+        ``approach_roll`` in rad). Raises Unreachable naming the knot
+        point that cannot be reached, or :class:`~picking_core.approaches.Blocked` naming the
+        obstacle.
+        """
+        return approaches.clear_cycle(
+            self, lambda T, detours=None, branch=None: self._plan(start, T, gripper_start, from_box, home_after,
+                                                                  detours, branch), T_apple)
+
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None):
+        """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
+        label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
+        (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
+        than the one nearest home)."""
+        pl, s, arm = self.planner, self.s, self.arm
+        detours = detours or {}
+        start = pl.check_start(start)
+        if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
+            raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
+                             'entered and left at speed)')
+        joint_method = s.approach_method
+        poses = self.key_poses(T_apple)
+        home = np.asarray(s.home_positions, float)
+        # Step C first: every knot point must be reachable before anything moves.
+        q = {}
+        seed = home
+        for name in ('P1', 'P2', 'P3', 'P4', 'P5'):
+            try:
+                q[name] = arm.check_reachable(poses[name], seed=seed)
+            except Unreachable as exc:
+                if not (s.place_yaw_free and name in ('P4', 'P5')):
+                    raise Unreachable(f'{name} ({_LABELS[name]}): {exc}') from None
+                q[name] = None
+            seed = q[name] if q[name] is not None else seed
+        if branch is not None:
+            q['P1'] = arm.check_joints(branch, 'branch')
+        if s.place_yaw_free:
+            poses, q['P4'], q['P5'] = self.quickest_place(poses, q['P3'], home)
+        parts, cart = [], []
+
+        def add(label, method, traj, path=None):
+            parts.append((label, method, traj))
+            if path is not None:
+                cart.append((len(parts) - 1, path))
+
+        if from_box:
+            _, _, rise_line = self._out_of_the_box(start)
+        else:
+            stop, q_rest = pl.come_to_rest(start)
+            if stop is not None:
+                add('brake', 'quintic', stop)
+            if 'P0 home' in detours:
+                add('P0 home', s.transfer_method, self._detour([q_rest, *detours['P0 home'], home], None, None))
+            elif np.abs(q_rest - home).max() > 1e-4:
+                add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
+        speeds = BLEND_SPEEDS if s.blend else (0.0,)
+
+        def blend_state(traj, at_end):
+            """``(velocity, acceleration)`` where a blend meets ``traj`` (its end or start); None without."""
+            if not s.blend:
+                return None
+            return (traj.end_state() if at_end else traj.start_state())[1:]
+
+        def approach(line, rise=None):
+            """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple."""
+            vf, af = blend_state(line, False) or (None, None)
+            q0 = home if rise is None else rise.end_state()[0]
+            v0, a0 = (None, None) if rise is None else (blend_state(rise, True) or (None, None))
+            if 'P1 approach' in detours:
+                return self._detour([q0, *detours['P1 approach'], line.start_state()[0]],
+                                    None if v0 is None else (v0, a0), None if vf is None else (vf, af))
+            return pl.joint_move(q0, line.start_state()[0], joint_method, v0=v0, a0=a0, vf=vf, af=af)
+
+        def transfer(lift, into_box=None):
+            """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
+            q_lift = lift.end_state()[0]
+            q_box = q4 if into_box is None else into_box.start_state()[0]
+            # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
+            corner = q_lift if q_top is None else q_top
+            through = detours.get('P4 above the box', [self._clearance(corner, q['P4'])])
+            return pl.via(np.array([q_lift, *through, q_box]), s.transfer_method,
+                          blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
+
+        # With blend radii the joint moves meet the lines that far from P1, P3 and P4: the
+        # lines are that much shorter, and the corners are rounded by the joint moves.
+        r, r_box = s.blend_radius, s.box_blend_radius
+        q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
+        q4 = q['P4'] if r_box == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r_box, q['P4'],
+                                                          'box_blend_radius')
+        # P1: the approach ends where (and as fast as) the line to the apple starts.
+        to_apple = lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest)  # noqa: E731
+        if from_box:
+            # The line to the apple as for an approach from the top of the box at rest; then the
+            # speed out of the box for that line.
+            at_rest = rise_line(0.0, None)[0]
+            _, (traj, path) = self._quickest(speeds, to_apple, lambda line: approach(line, at_rest))
+            moved, (rise, rise_path) = self._quickest(speeds, rise_line, lambda r: approach(traj, r))
+            add('P4 out of the box', 'line', rise, rise_path)
+        else:
+            moved, (traj, path) = self._quickest(speeds, to_apple, approach)
+        add('P1 approach', joint_method, moved)
+        add('P2 to the apple', 'line', traj, path)
+        q_apple = traj.end_state()[0]
+        q_top = None if r == 0.0 else self._top(q_apple, poses)     # the corner at P3 (the lift's end without r)
+        add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
+        # P3: the lift flows into the transfer (stopping at P4 for this choice; without blends there is no
+        # choice to make, and the transfer is planned once, below) ...
+        if s.blend:
+            _, (lift, path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest), transfer)
+        else:
+            lift, path = self._lift(q_apple, poses, 0.0)
+        add('P3 lift and detach', s.lift_method, lift, path)
+        # ... and the transfer into the line into the box.
+        moved, (traj, path) = self._quickest(
+            speeds, lambda f, rest: pl.line(q4, arm.fk(q4), poses['P5'], (f, 0.0), rest),
+            lambda line: transfer(lift, line))
+        add('P4 above the box', s.transfer_method, moved)
+        add('P5 into the box', 'line', traj, path)
+        q_box = traj.end_state()[0]
+        add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
+        if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
+            for part in self._home_from_box((q_box, 0.0 * q_box, 0.0 * q_box), detours.get('P0 back home')):
+                add(*part)
+        return self._with_gripper(parts, cart, gripper_start)
+
+    def _detour(self, qs, start, end):
+        """A joint move through the waypoints ``qs``, timed with the transfer's via-point method (from
+        and to rest unless that method is ``optimal``, which also starts and ends moving)."""
+        method = self.s.transfer_method
+        if method != 'optimal':
+            start = end = None
+        return self.planner.via(np.array(qs), method, start, end)
+
+    def back_home(self, start, gripper_start=None):
+        """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper;
+        with a checker, clear of its obstacles (around them if need be), else Blocked naming the contact."""
+        def plan(detours=None):
+            parts = self._home_from_box(start, (detours or {}).get('P0 back home'))
+            cart = [(k, part[3]) for k, part in enumerate(parts) if part[3] is not None]
+            return self._with_gripper([part[:3] for part in parts], cart, gripper_start)
+        done, contact = approaches.clear_plan(self, plan, None)
+        if contact is not None:
+            raise approaches.Blocked(f'the way home from the box hits {contact}')
+        return done
+
+    def _with_gripper(self, parts, cart, gripper_start):
+        """The Plan of the parts ``(label, method, traj)``, the gripper's opening as its last joint."""
+        plan = self.planner.join(parts, 'pick', cart)
+        gripper, events = self._gripper(plan, gripper_start)
+        whole = trajectory.stack([plan.trajectory, gripper])
+        return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + (GRIPPER_JOINT,), events)
+
+    def _home_from_box(self, start, through=None):
+        """``(label, method, traj, path)`` of each part from rest in the box back home: straight up out of
+        the box (the way in, reversed), flowing into the move home, or (without blends) through P4;
+        ``through``: joint waypoints of the move home (a detour)."""
+        pl, s = self.planner, self.s
+        home = np.asarray(s.home_positions, float)
+        q_box, q_top, rise_line = self._out_of_the_box(start)
+        if not s.blend:
+            return [('P0 back home', s.transfer_method, pl.via(np.array([q_box, q_top, *(through or []), home]),
+                                                               s.transfer_method), None)]
+
+        def home_from(rise):
+            v0, a0 = rise.end_state()[1:]
+            if through:
+                return self._detour([rise.end_state()[0], *through, home], (v0, a0), None)
+            return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
+        moved, (traj, path) = self._quickest(BLEND_SPEEDS, rise_line, home_from)
+        return [('P4 out of the box', 'line', traj, path), ('P0 back home', s.transfer_method, moved, None)]
+
+    def _out_of_the_box(self, start):
+        """``(q, q_top, rise_line)`` for a motion that starts at rest in the box: the joints there, at
+        the height of P4 (less ``box_blend_radius``) straight above, and ``rise_line(f, rest)``, the line
+        up to there, left at speed fraction ``f``."""
+        q, qd, qdd = (np.asarray(x, float) for x in self.planner.check_start(start))
+        if np.abs(qd).max() > 1e-9 or np.abs(qdd).max() > 1e-9:
+            raise ValueError('a cycle from the box starts at rest there (where the cycle before it ended)')
+        T_box = self.arm.fk(q)
+        T_top = T_box.copy()
+        T_top[2, 3] += self.s.box_drop_height - self.s.box_blend_radius
+        try:
+            q_top = self.arm.check_reachable(T_top, seed=q)
+        except Unreachable as exc:
+            raise Unreachable(f'P4 (above the box), rising out of it: {exc}') from None
+        return q, q_top, lambda f, rest: self.planner.line(q, T_box, self.arm.fk(q_top), (0.0, f), rest)
+
+    @staticmethod
+    def _quickest(speeds, cartesian, joint):
+        """``(joint move, (trajectory, path))`` of the quickest pair over the blend speeds.
+
+        ``cartesian(f, rest)`` plans the line (or arc) at speed fraction ``f`` where it
+        meets the joint move (``rest``: its path from rest to rest, None for that one
+        itself); ``joint(trajectory)`` plans the move that meets it. The first speed
+        (rest) must work; a faster one is skipped where it cannot (entering too fast to
+        stop in time, or a joint state the move cannot reach within the limits).
+        """
+        line = cartesian(speeds[0], None)
+        best, rest = (joint(line[0]), line), line[1]
+        for f in speeds[1:]:
+            try:
+                line = cartesian(f, rest)
+                move = joint(line[0])
+            except (ValueError, Unreachable):
+                continue
+            if move.duration + line[0].duration < best[0].duration + best[1][0].duration:
+                best = (move, line)
+        return best
+
+    def _lift(self, q_apple, poses, speed, rest=None):
+        """The lift from the apple to P3 (a line, or an arc that also pulls back), leaving P3
+        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest).
+
+        With a blend radius the lift ends that far before its end (along the line or the arc)."""
+        pl, s, r = self.planner, self.s, self.s.blend_radius
+        T2, mid, end = self._lift_poses(q_apple, poses)
+        if mid is None:
+            return pl.line(q_apple, T2, end if r == 0.0 else _toward(end, T2, r), (0.0, speed), rest)
+        if r > 0.0:
+            arc = geometry.Arc.through(T2[:3, 3], mid[:3, 3], end[:3, 3])
+            mid, end = mid.copy(), end.copy()
+            mid[:3, 3] = arc.at(0.5 * (arc.length - r))[0]
+            end[:3, 3] = arc.at(arc.length - r)[0]
+        return pl.arc(q_apple, T2, mid, end, (0.0, speed), rest)
+
+    def _lift_poses(self, q_apple, poses):
+        """``(start, through, end)`` of the whole lift: the tool at the apple, the arc's middle
+        (None for a line) and its end (P3 for a line)."""
+        s = self.s
+        T2 = self.arm.fk(q_apple)
+        if s.lift_method == 'line':
+            return T2, None, poses['P3']
+        back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
+        back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
+        mid = T2.copy()
+        mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
+        end = T2.copy()
+        end[:3, 3] += back + np.array([0, 0, s.lift_height])
+        return T2, mid, end
+
+    def _top(self, q_apple, poses):
+        """The joints at the end of the whole lift (where the transfer would start without a blend radius)."""
+        return self.arm.check_reachable(self._lift_poses(q_apple, poses)[2], seed=q_apple)
+
+    def _ik_toward(self, name, T_from, T_to, distance, seed, setting='blend_radius'):
+        """The joints where the tool is ``distance`` m from ``T_from`` (the knot point ``name``) on the
+        line to ``T_to``; Unreachable naming the point and the blend radius."""
+        try:
+            return self.arm.check_reachable(_toward(T_from, T_to, distance), seed=seed)
+        except Unreachable as exc:
+            raise Unreachable(f'{name} ({_LABELS[name]}) moved by {setting} {distance} m along its line: '
+                              f'{exc}') from None
+
+    def quickest_place(self, poses, q_lift, home):
+        """``(poses, q4, q5)``: the key poses with P4 and P5 turned about the vertical for the quickest
+        transfer from ``q_lift`` and return to ``home``, and the joints there."""
+        vmax = np.where(np.isfinite(self.arm.max_velocity), self.arm.max_velocity, 1.0)
+        # Every turn at once: 12 candidates in 30 degree steps, one batched IK each for P4 and P5.
+        turns = _PLACE_TURNS
+        P4, P5 = np.repeat(poses['P4'][None], len(turns), 0), np.repeat(poses['P5'][None], len(turns), 0)
+        P4[:, :3, :3] = turns @ poses['P4'][:3, :3]
+        P5[:, :3, :3] = turns @ poses['P5'][:3, :3]
+        q4, ok4, _ = self.arm.ik_batch(P4, q_lift)
+        q5, ok5, _ = self.arm.ik_batch(P5, np.where(ok4[:, None], q4, q_lift))
+        ok = ok4 & ok5
+        if not ok.any():
+            raise Unreachable('P4 (above the box): no turn of the gripper about the vertical reaches the box')
+        cost = np.max(np.abs(q4 - q_lift) / vmax, axis=1) + np.max(np.abs(home - q4) / vmax, axis=1)
+        best = int(np.argmin(np.where(ok, cost, np.inf)))
+        return {**poses, 'P4': P4[best], 'P5': P5[best]}, q4[best], q5[best]
+
+    def _clearance(self, qa, qb):
+        """The transfer's via point: halfway in joint space, the shoulder lifted by ``transfer_lift``."""
+        mid = 0.5 * (qa + qb)
+        mid[1] -= self.s.transfer_lift
+        return np.clip(mid, self.arm.lower, self.arm.upper)
+
+    def _gripper_time(self, wanted):
+        """A dwell long enough for the fingers to move within their limits (quintic peaks)."""
+        names = self.arm.all_joint_names
+        if 'gripper_joint' not in names:
+            return wanted
+        i = names.index('gripper_joint')
+        _, _, vmax, amax = self.arm.all_limits
+        travel = self.s.gripper_open - self.s.gripper_closed
+        need = max(1.875 * travel / vmax[i], np.sqrt(5.78 * travel / amax[i]) if np.isfinite(amax[i]) else 0.0)
+        return max(wanted, 1.02 * need)
+
+    def _gripper(self, plan, gripper_start):
+        """The finger opening over the plan: closes during the grasp dwell, opens during release.
+
+        One quintic per segment of the plan (a hold where the fingers keep their opening),
+        all built at once.
+        """
+        s = self.s
+        g = s.gripper_open if gripper_start is None else float(gripper_start)
+        ends, events = [], {}
+        for seg in plan.segments:
+            start = g
+            if seg.label == 'grasp':
+                g = s.gripper_closed
+                events['grasp_start'], events['grasp_end'] = seg.start, seg.start + seg.duration
+            elif seg.label == 'release':
+                g = s.gripper_open
+                events['release_start'], events['release_end'] = seg.start, seg.start + seg.duration
+            elif seg.label in ('brake', 'P0 home') and seg.duration >= self._gripper_time(0.0):
+                g = s.gripper_open
+            ends.append((start, g, seg.duration))
+        g0, g1, durations = np.array(ends).T
+        coeffs = trajectory.hermite_coeffs(g0, 0.0, 0.0, g1, 0.0, 0.0, durations)
+        breaks = np.concatenate(([0.0], np.cumsum(durations)))
+        return trajectory.PiecewisePolynomial(breaks, coeffs[:, :, None]), events
+
+
+_LABELS = {'P1': 'approach', 'P2': 'the apple', 'P3': 'lift', 'P4': 'above the box', 'P5': 'into the box'}

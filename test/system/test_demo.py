@@ -1,0 +1,69 @@
+"""The main job: `picking-demo --quick` runs the Table 1 cycle through the real nodes and reports it."""
+
+import json
+import os
+import re
+import subprocess
+
+import pytest
+
+from rosstack import BIN
+
+
+@pytest.mark.load
+def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
+    done = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--out', str(tmp_path)], capture_output=True,
+                          text=True, timeout=240, env=os.environ.copy())
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert 'goal reached' in done.stdout and 'stopped picking-sim' in done.stdout
+    report = json.loads((tmp_path / 'report.json').read_text())
+    labels = [s[0] for s in report['segments']]
+    for knot in ('P1 approach', 'P2 to the apple', 'grasp', 'P3 lift and detach', 'P4 above the box',
+                 'P5 into the box', 'release', 'P0 back home'):
+        assert knot in labels
+    assert all(report['checks'].values()), report['checks']
+    assert 2.0 < report['cycle_time_s'] < 30.0
+    # The arm ends where the plan ends, and followed its straight lines within a few millimetres.
+    assert max(report['final_error'][:6]) < 0.01
+    assert all(float(row[4]) < 5.0 for row in report['cartesian'])
+    assert report['joints'][-1] == 'gripper_joint'
+    for name in ('report.md', 'joints.png', 'tracking_error.png', 'tool_path.png', 'demo.mcap'):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    run = json.loads((tmp_path / 'run.json').read_text())
+    assert run['ok'] and set(run['events']['exit_codes'].values()) == {0}
+    # Every Markdown table of the report has as many cells in every row as in its header (escaped pipes).
+    tables = re.findall(r'(?:^\|.*\|\n)+', (tmp_path / 'report.md').read_text(), re.M)
+    assert len(tables) >= 3
+    for table in tables:
+        widths = {len(re.split(r'(?<!\\)\|', row.strip())) for row in table.strip().splitlines()}
+        assert len(widths) == 1, table
+
+
+def test_a_failed_run_reports_why_and_leaves_no_earlier_report_behind(tmp_path):
+    """An apple out of reach: the planner refuses the pick; the report says so, quotes the nodes'
+    logs and keeps what was recorded, and no report of an earlier run remains to be taken for it."""
+    import shutil
+
+    import yaml
+    from picking_bringup.shipped import config_dir
+
+    config = tmp_path / 'config'
+    shutil.copytree(config_dir(), config)
+    cycle = yaml.safe_load((config / 'pick_cycle.yaml').read_text())
+    cycle['picking_demo']['ros__parameters']['apple_position'] = [3.0, 0.0, 0.65]
+    (config / 'pick_cycle.yaml').write_text(yaml.safe_dump(cycle))
+    out = tmp_path / 'out'
+    out.mkdir()
+    for name in ('report.md', 'joints.png'):
+        (out / name).write_text('an earlier run')
+    done = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--out', str(out)], capture_output=True,
+                          text=True, timeout=240, env={**os.environ, 'PICKING_CONFIG': str(config)})
+    assert done.returncode == 1, done.stdout[-3000:] + done.stderr[-3000:]
+    assert 'FAILED: the planner refused the pick' in done.stdout
+    report = (out / 'report.md').read_text()
+    assert report.startswith('# Pick-and-place demo: FAILED') and 'the planner refused the pick' in report
+    assert 'picking-planner.1.log' in report and 'planning for picking_arm' in report
+    assert not (out / 'joints.png').exists()
+    assert (out / 'demo.mcap').stat().st_size > 1000
+    run = json.loads((out / 'run.json').read_text())
+    assert not run['ok'] and set(run['events']['exit_codes'].values()) == {0}

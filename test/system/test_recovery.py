@@ -1,0 +1,191 @@
+"""System tests of failures and restarts: each runs a stack of its own, alone (no other arm
+running beside it), and every node must exit with 0 at the end."""
+
+import re
+import signal
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from control_msgs.action import FollowJointTrajectory
+from rclpy.action import ActionServer
+from rclpy.task import Future
+
+from picking_common.status import stamp_key, status_values
+from picking_core.lifecycle import RESULT_MARGIN
+
+from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
+
+
+def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
+    with running_stack('/sys3', tmp_path) as (stack, client):
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))      # the whole loop works first
+        mark = client.mark()
+        assert stack.sim.stop() == 0
+        lost = client.controller_event(mark, 'feedback lost', 10.0)
+        assert lost.level == DiagnosticStatus.ERROR
+        refused = client.mark()
+        client.send_pose([0.6, 0.0, 0.4])
+        client.controller_event(refused, 'trajectory rejected', 10.0)
+        stack.restart_sim()
+        client.controller_event(mark, 'feedback restored', 20.0)
+        time.sleep(1.0)          # the new simulator's command subscription is still being discovered
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+
+
+def test_controller_and_planner_restarts_hold_the_arm_and_it_carries_on(tmp_path):
+    with running_stack('/sys5', tmp_path) as (stack, client):
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
+        at_rest = client.mark()
+        before = client.last_positions()
+        # The controller dies: the simulator holds where it was told last (and says so).
+        assert stack.controller.stop() == 0
+        client.wait_for(lambda: client.count_publishers('controller_status') == 0, 10.0, 'the old controller to go')
+        time.sleep(1.0)
+        stack.restart_controller()
+        client.wait_ready()                              # the new one commands: it holds the measured position
+        time.sleep(1.0)
+        # The planner dies and comes back: goals work again.
+        assert stack.planner.stop() == 0
+        client.wait_for(lambda: client.count_publishers('planner_status') == 0, 10.0, 'the old planner to go')
+        stack.restart_planner()
+        client.wait_ready()
+        assert largest_step(client, at_rest) < 1e-4                       # no jump at either restart
+        assert np.abs(client.last_positions() - before).max() < 1e-3
+        reach(client, lambda: client.send_pose([0.6, 0.0, 0.4]))
+        assert 'holding' in stack.sim.output()
+
+
+def test_nodes_exit_cleanly_on_sigterm(tmp_path):
+    ensure_rclpy()
+    stack = Stack('/sys4', tmp_path)
+    client = Client('/sys4')
+    try:
+        client.wait_ready()
+    finally:
+        codes = {p.name: p.stop(signal.SIGTERM) for p in (stack.planner, stack.controller, stack.sim)}
+        client.close()
+    for proc in (stack.planner, stack.controller, stack.sim):
+        assert codes[proc.name] == 0, proc.output()
+        assert 'Traceback' not in proc.output()
+
+
+def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_path):
+    """The simulator's whole process stops for 0.2 s during a brisk move (as on a loaded machine):
+    it runs the missed steps along the commands when it wakes, the controller sees no path error,
+    and the simulator reports the stall."""
+    with running_stack('/sys6', tmp_path) as (stack, client):
+        # A quintic move: at its peak speed only briefly (a jerk-limited one cruises at the limit, where a
+        # servo that catches up saturates at 1.2 times it and lags further).
+        client.set_planner_parameters({'speed_scale': 1.0, 'method': 'quintic'})
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
+        mark = client.mark()
+        client.send_pose([0.05, -0.55, 0.45])             # the waist turns about 1.7 rad
+        answer = client.planner_answer(mark)
+        assert answer.level == DiagnosticStatus.OK, answer.message
+        client.controller_event(mark, 'trajectory accepted', 10.0)
+        time.sleep(0.5)                                     # well into the move
+        stack.sim.proc.send_signal(signal.SIGSTOP)
+        try:
+            time.sleep(0.2)
+        finally:
+            stack.sim.proc.send_signal(signal.SIGCONT)
+        done = client.controller_event(mark, 'goal ', 20.0)  # goal reached (or a fault's "goal tolerance")
+        assert done.message == 'goal reached', done.message
+        assert not [m.message for _, m in client.controller_status[mark['controller']:]
+                    if m.level == DiagnosticStatus.ERROR]
+        stalls = re.findall(r'servo loop stalled for ([0-9.]+) s', stack.sim.output())
+        assert stalls and max(map(float, stalls)) >= 0.19, stalls
+        # Well within the path tolerance (0.1 rad); about 0.6 mrad measured (6-9 mrad when the servo took the
+        # command back in time; the exact figures are the unit tests' of the servo).
+        assert float({kv.key: kv.value for kv in done.values}['max_tracking_error']) < 0.05
+
+
+class StandInController:
+    """The test plays the controller's follow_joint_trajectory server (the real one stopped):
+    ``verdicts`` says how each goal ends, in turn: an error code (aborted, with a reason), or
+    'silent' (accepted, then never answered)."""
+
+    def __init__(self, client, verdicts):
+        self.client, self.verdicts, self.plans = client, list(verdicts), []
+        self.server = ActionServer(client, FollowJointTrajectory, 'follow_joint_trajectory',
+                                   execute_callback=self._execute)
+
+    async def _execute(self, handle):
+        self.plans.append(handle.request.trajectory)
+        verdict = self.verdicts.pop(0) if self.verdicts else FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP
+        if verdict == 'silent':
+            await Future()                                   # never done
+        handle.abort()
+        words = {FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP: 'the trajectory ends in the past'}
+        return FollowJointTrajectory.Result(error_code=verdict, error_string=words.get(verdict, 'unknown joints'))
+
+
+def _answers(client, mark, goal):
+    return [m for _, m in client.planner_status[mark['planner']:] if status_values(m).get('goal') == goal]
+
+
+def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ahead(tmp_path):
+    """The controller ends a plan that came too late to run (a process or the transport stalled on
+    a loaded machine) with OLD_HEADER_TIMESTAMP. The planner then plans that goal again from where
+    the arm is, starting further ahead, twice at most; then it ends the goal as refused. A plan
+    refused for another reason is not planned again."""
+    with running_stack('/sys7', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        bad = FollowJointTrajectory.Result.INVALID_JOINTS
+        controller = StandInController(client, [bad])
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        refused = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  20.0, 'the refusal')[0]
+        assert 'refused' in refused.message and 'unknown joints' in refused.message
+        assert status_values(refused)['controller_error_code'] == str(int(bad))
+        assert len(controller.plans) == 1
+
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.6, 0.0, 0.45]).header.stamp)
+        gave_up = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  20.0, 'the planner to give the goal up')[0]
+        accepted = [m for m in _answers(client, mark, goal) if status_values(m).get('state') == 'accepted']
+        assert [status_values(m)['attempt'] for m in accepted] == ['1', '2', '3']
+        assert 'again (the last plan reached the controller too late)' in accepted[1].message
+        assert 'too late 3 times' in gave_up.message, gave_up.message
+        stamps = [p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in controller.plans[1:]]
+        assert stamps == sorted(stamps) and len(set(stamps)) == 3
+        time.sleep(0.5)
+        assert len(controller.plans) == 4                        # not planned a fourth time
+        controller.server.destroy()
+
+
+def test_a_plan_the_controller_never_answers_ends_aborted_with_the_reason(tmp_path):
+    """No goal stays accepted forever: a controller that takes a plan and never gives its result
+    ends the goal as aborted, RESULT_MARGIN s after the plan's end."""
+    with running_stack('/sys9', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        controller = StandInController(client, ['silent'])
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        accepted = client.wait_for(lambda: [m for m in _answers(client, mark, goal)
+                                            if status_values(m).get('state') == 'accepted'], 20.0, 'accepted')[0]
+        bound = float(status_values(accepted)['duration']) + RESULT_MARGIN + 5.0
+        aborted = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  bound, f'the goal to end within {bound:.1f} s')[0]
+        assert status_values(aborted)['state'] == 'aborted' and 'no result from the controller' in aborted.message
+        controller.server.destroy()
+
+
+def test_a_node_asked_with_sigusr1_writes_every_threads_stack_and_runs_on(tmp_path):
+    """`kill -USR1 <pid>`, for a node that will not stop: it writes where each of its threads is (the
+    controller: its executor and its loop thread) to its log, and goes on running; the test harness
+    does so before it kills a node that did not exit in time."""
+    with running_stack('/sys8', tmp_path) as (stack, client):
+        stack.controller.proc.send_signal(signal.SIGUSR1)
+        client.wait_for(lambda: 'most recent call first' in stack.controller.output(), 5.0, 'the stack dump')
+        time.sleep(0.5)
+        dump = stack.controller.output()
+        assert len(re.findall(r'^(?:Current thread|Thread) 0x[0-9a-f]+', dump, re.M)) >= 2, dump[-3000:]
+        assert 'run_node' in dump                   # the main thread, spinning the executor
+        mark = client.mark()
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))          # and the stack works on
+        assert client.mark()['states'] > mark['states']
