@@ -128,10 +128,10 @@ def test_every_method_runs_as_planned_and_no_command_is_limited(shipped):
         commands = [m for _, m in client.commands]
     assert not [text for text, _ in statuses if 'command limited' in text]
     stalled = [text for text, _ in statuses if 'control loop stalled' in text]
-    # The trajectories the controller ran, and how much of each a catch-up lead-in replaced (one that
-    # came late: this machine's delivery took longer than the planner allowed for).
-    accepted = {values['trajectory']: float(values['caught_up']) for text, values in statuses
-                if text == 'trajectory accepted'}
+    # The trajectories the controller ran: every one carried on from the reference (none bridged).
+    accepted = {values['trajectory']: float(values['bridge']) for text, values in statuses
+                if text.startswith('trajectory accepted')}
+    assert not [text for text, _ in statuses if text.startswith('trajectory accepted') and 'carries on' not in text]
     ran = [(tr, accepted[stamp_key(tr.header.stamp)]) for tr in trajectories if stamp_key(tr.header.stamp) in accepted]
     assert len(ran) >= 3 + len(POSE_METHODS) + len(PATH_METHODS)
     compared = 0

@@ -237,8 +237,12 @@ def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
     client.send_pose([0.6, -0.2, 0.45])
     second = client.planner_answer(mark2)
     assert second.level == DiagnosticStatus.OK
-    assert {kv.key: kv.value for kv in second.values}['start'] == 'reference'
+    # Planned from the accepted plan's state where it takes over, and carried on from exactly there.
+    assert {kv.key: kv.value for kv in second.values}['start'] == 'plan'
     client.controller_event(mark2, 'goal reached', 40.0)
+    with client.lock:
+        taken = [m.message for _, m in client.controller_status[mark2['controller']:] if 'accepted' in m.message]
+    assert taken and all('carries on from the reference' in m for m in taken), taken
     with client.lock:
         cmds = [m for _, m in client.commands[mark['commands']:]]
     vel = np.array([m.velocity[:6] for m in cmds])

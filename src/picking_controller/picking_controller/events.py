@@ -1,25 +1,10 @@
-"""The trajectory controller's logic, with no ROS in it.
-
-:class:`ControllerCore` holds the active trajectory on the controller's clock,
-produces the reference at every tick, validates new trajectories, splices them
-onto the current reference (no jump), monitors tracking against tolerances,
-and runs the feedback watchdog. The node only feeds it messages and the clock
-and publishes what it returns.
-
-Times are seconds on one clock (the node's ROS clock).
-"""
+"""The controller's values and events: its modes, tolerances, the event it reports, and the refusal of a trajectory
+that came too late (pure core)."""
 
 from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-
-from picking_core.trajectory import PiecewisePolynomial
-
-#: Shortest lead-in from the current reference to a new trajectory's first point, s.
-MIN_LEAD = 0.02
-#: Lead-ins tried in turn when a shorter one would break a limit (a trajectory that came late), s.
-LEADS = (MIN_LEAD, 0.05, 0.1, 0.2)
 
 
 class Mode(str, enum.Enum):
@@ -33,26 +18,8 @@ class Mode(str, enum.Enum):
 
 
 class LateTrajectory(ValueError):
-    """A trajectory that came too late to run as sent: it ends before it could take over, or the
-    points due by then cannot be caught up on (too far from the reference, or only beyond a
-    limit), or it was planned from a reference the controller no longer follows (its first point
-    is not where the reference will be, and the lead-in from there breaks a limit). Its sender
-    may plan it again; a trajectory rejected otherwise is at fault itself."""
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """A validated trajectory, ready to take over at ``t_splice`` (see :meth:`ControllerCore.prepare`)."""
-
-    traj: PiecewisePolynomial
-    t_splice: float
-    version: int
-    accepted: Event
-    lead_in: float = 0.0                 # s: the lead-in from the reference to the first point
-    goal: object = None                  # the action goal it runs for (None: a topic's trajectory)
-    tolerances: object = None            # its goals.JointTolerances (None: the defaults)
-    origin: float = 0.0                  # clock time of its points' time_from_start 0 (its header stamp)
-
+    """A trajectory whose start (its stamp) had passed when it came: its sender may plan it again from a later
+    start; a trajectory refused otherwise is at fault itself."""
 
 @dataclass(frozen=True)
 class Tolerances:

@@ -42,8 +42,7 @@ from picking_common.topics import BURST, RELIABLE, LatestMessage, newest_waiting
 from picking_core.kinematics import ArmModel
 from picking_description import default_urdf
 
-from .core import ControllerCore, ErrorCode, Event, Outcome, Tolerances
-from .events import Mode
+from .core import ControllerCore, ErrorCode, Event, Mode, Outcome, Tolerances
 from .parameters import PARAMS, RUNTIME
 
 
@@ -69,8 +68,10 @@ class ControllerNode(Node):
             raise ValueError(f'update_rate must be > 0 Hz, got {self.rate}')
         loop_phase = p['loop_phase']
         self.arm = ArmModel.from_urdf(urdf or default_urdf())
+        extra = len(self.arm.extra_joint_names)
         self.core = ControllerCore(self.arm.all_joint_names, *self.arm.all_limits, _tolerances(p),
-                                   optional=self.arm.extra_joint_names, stall_limit=p['stall_limit'])
+                                   optional=self.arm.extra_joint_names, stall_limit=p['stall_limit'],
+                                   max_jerk=np.concatenate([self.arm.max_jerk, np.full(extra, np.inf)]))
         self.lock = threading.Lock()
         self.add_on_set_parameters_callback(self._on_parameters)
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)

@@ -57,7 +57,7 @@ def run_and_compare(core, plans, since, until, rng):
         cols = [core.names.index(n) for n in names]
         got = (q[cols], qd[cols], qdd[cols])
         worst = np.maximum(worst, [np.abs(g - w).max() for g, w in zip(got, want)])
-    assert core.limited == 0
+    assert core.guard.limited == 0
     return worst
 
 

@@ -1,20 +1,43 @@
-"""The controller's logic without ROS: splicing, tolerances, goal, watchdog, refusals."""
+"""The controller's logic without ROS: the schedule spliced at the stamp, bridges, tolerances judged at the
+measurement's instant, stalls, the watchdog, refusals."""
 
 import numpy as np
 import pytest
 
 from picking_controller.core import ControllerCore, Tolerances
-from picking_core.trajectory import PiecewisePolynomial
+from picking_controller.schedule import Entry
+from picking_core.trajectory import PiecewisePolynomial, hold, quintic
 
 NAMES = ['a', 'b', 'gripper']
-INF = np.inf
+LIMITS = dict(vmax=[2, 2, 0.3], amax=[10, 10, 3])
 
 
 def core(**tol):
-    c = ControllerCore(NAMES, [-3, -3, 0], [3, 3, 0.1], [2, 2, 0.3], [10, 10, 3], Tolerances(**tol),
-                       optional=['gripper'])
+    c = ControllerCore(NAMES, [-3, -3, 0], [3, 3, 0.1], LIMITS['vmax'], LIMITS['amax'], Tolerances(**tol),
+                       optional=['gripper'], max_jerk=[100, 100, 30])
     c.on_state([0.0, 0.0, 0.05], [0.0, 0.0, 0.0], 0.0, now=0.0)
     return c
+
+
+def run(c, t0, t1, dt=1e-3):
+    """Command every ``dt`` from ``t0`` to ``t1``: the commands (t, q, qd, qdd) and every event."""
+    out, events = [], []
+    for t in np.arange(t0, t1, dt):
+        c.advance(t)
+        (q, qd, qdd), ev = c.command(t)
+        out.append((t, q.copy(), qd.copy(), qdd.copy()))
+        events += ev
+    return out, events
+
+
+def within_limits(commands):
+    q = np.array([c[1] for c in commands])
+    qd = np.array([c[2] for c in commands])
+    qdd = np.array([c[3] for c in commands])
+    assert np.all(np.abs(qd) <= np.array(LIMITS['vmax']) + 1e-9)
+    assert np.all(np.abs(qdd) <= np.array(LIMITS['amax']) + 1e-6)
+    steps = np.abs(np.diff(q, axis=0))
+    assert np.all(steps <= np.array(LIMITS['vmax']) * 1e-3 * 1.01 + 1e-9)
 
 
 def test_waits_for_feedback_then_holds_the_measured_position():
@@ -30,103 +53,143 @@ def test_waits_for_feedback_then_holds_the_measured_position():
 
 def test_trajectory_runs_and_the_goal_is_reported():
     c = core()
-    ev = c.load(['b', 'a'], [1.0], [[0.5, 1.0]], [], [], 0.0, now=0.0)
+    ev = c.load(['b', 'a'], [1.0], [[0.5, 1.0]], [], [], 0.0, now=0.0, goal='g')
     assert ev.level == 'OK', ev.message
     q, _, _ = c.reference(1.0)
     assert q == pytest.approx([1.0, 0.5, 0.05])          # reordered; gripper held
     events = c.on_state([1.0, 0.5, 0.05], [0, 0, 0], 1.1, now=1.1)
-    assert events and events[0].message == 'goal reached'
+    assert events and events[0].message == 'goal reached' and events[0].goal == 'g'
 
 
-def test_new_trajectory_splices_on_without_a_velocity_jump():
+def test_a_stamp_of_zero_leads_in_from_the_reference_now_to_a_later_first_point():
+    """As ros2_controllers' trajectory controller: the first point's time_from_start is the time to get there
+    from where the reference is; no jump in position or velocity."""
     c = core()
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
     now = 1.0
     before = c.reference(now)
-    c.load(['a', 'b'], [0.5, 1.5], [[0.8, 0.0], [-0.5, 0.3]], [], [], 0.0, now=now)
+    ev = c.load(['a', 'b'], [0.5, 1.5], [[0.8, 0.0], [0.2, 0.3]], [], [], 0.0, now=now)
+    assert 'led in from the reference over 0.500 s' in ev.message
     after = c.reference(now)
     assert after[0] == pytest.approx(before[0]) and after[1] == pytest.approx(before[1])
-    t = now + np.linspace(0, 0.1, 101)
-    v = np.array([c.reference(x)[1] for x in t])
+    v = np.array([c.reference(x)[1] for x in now + np.linspace(0, 0.1, 101)])
     assert np.abs(np.diff(v, axis=0)).max() < 0.05
 
 
-def test_a_prepared_trajectory_takes_over_at_its_splice_time_without_a_jump():
+def test_a_trajectory_stamped_ahead_is_spliced_at_its_stamp_and_carries_on_from_the_reference_there():
+    """What was scheduled before the stamp runs until then; a first point that is the reference at the stamp
+    (position, velocity, acceleration) is run exactly as sent from there, no bridge."""
     c = core()
-    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
-    prepared = c.prepare(['a', 'b'], [0.5, 1.5], [[0.8, 0.0], [0.2, 0.3]], [], [], 0.0, now=1.0,
-                         splice_delay=0.02)
-    old = c.reference(1.01)                               # the old trajectory runs until the splice
-    assert c.commit(prepared, now=1.01).level == 'OK'
-    assert c.reference(1.015)[0] == pytest.approx(c._reference_at(1.015)[0])
-    t = 1.01 + np.linspace(0.0, 0.05, 501)
-    q = np.array([c.reference(x)[0] for x in t])
-    v = np.array([c.reference(x)[1] for x in t])
-    assert q[0] == pytest.approx(old[0])
-    assert np.abs(np.diff(v, axis=0)).max() < 0.01          # no velocity step at 1.02 s
-    assert c.traj is prepared.traj and c.t0 == pytest.approx(1.02)
+    first = quintic([0.0, 0.0], [1.0, 0.5], 2.0)
+    t = np.arange(0.0, 2.0 + 1e-9, 0.01)
+    assert c.load(['a', 'b'], t, *first.sample(t), 0.0, now=0.0).level == 'OK'
+    t_s = 1.3                                                 # on the running plan: its state there
+    q0, v0, a0 = (x[:2] for x in c.reference(t_s))
+    second = quintic(q0, [0.2, 0.1], 1.0, v0=v0, a0=a0)
+    ev = c.load(['a', 'b'], t[t <= 1.0], *second.sample(t[t <= 1.0]), t_s, now=1.0)
+    assert 'carries on from the reference' in ev.message and ev.values['starts_in'] == pytest.approx(0.3)
+    assert c.reference(1.2)[0][:2] == pytest.approx(first.state_at(1.2)[0])     # the first still runs
+    assert c.reference(1.8)[0][:2] == pytest.approx(second.state_at(0.5)[0])
 
 
-def test_a_trajectory_that_replaces_a_scheduled_one_splices_onto_the_reference_that_runs():
-    """A trajectory scheduled for 1.05 s is replaced, before then, by one that takes over at 1.1 s: the
-    first never runs, so the second leads in from the trajectory that does (spliced onto the
-    scheduled one, it jumped)."""
+def test_each_trajectory_is_spliced_onto_the_whole_schedule_at_its_stamp():
+    """A runs; B is stamped to take over at 1.5 s, C at 2.0 s: A runs until 1.5, B until 2.0, C after. A D
+    stamped 1.8 s, before C's start, drops C (its goal ends: it never runs) and keeps B until 1.8."""
     c = core()
-    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
-    first = c.prepare(['a', 'b'], [0.6], [[0.3, 0.4]], [[0.0, 0.0]], [], 0.0, now=1.0, splice_delay=0.05)
-    assert c.commit(first, now=1.0).level == 'OK'
-    second = c.prepare(['a', 'b'], [0.8], [[1.0, -0.2]], [[0.0, 0.0]], [], 0.0, now=1.0, splice_delay=0.1)
-    assert c.commit(second, now=1.01).level == 'OK'
-    reports, sent = [], []
-    for now in np.arange(0.0, 1.0, 1e-3):
-        c.command(now)
-    for now in np.arange(1.0, 1.7, 1e-3):
-        (q, qd, _), events = c.command(now)
-        sent.append((q, qd))
-        reports += events
-    assert c.traj is second.traj
-    assert not [e for e in reports if 'command limited' in e.message], [e.message for e in reports]
-    q = np.array([s[0] for s in sent])
-    assert np.abs(np.diff(q, axis=0)).max() < 2.0 * 1e-3       # no step beyond the speed limit's per tick
+    c.load(['a', 'b'], [3.0], [[1.0, 0.0]], [], [], 0.0, now=0.0, goal='A')
+    for name, stamp, target in (('B', 1.5, -0.5), ('C', 2.0, 0.4)):
+        ev = c.load(['a', 'b'], [1.0], [[target, 0.0]], [], [], stamp, now=1.0, goal=name)
+        assert ev.level == 'OK', ev.message
+    assert [e.goal for e in c.schedule.entries] == ['A', 'B', 'C']
+    _, events = run(c, 1.0, 1.6)
+    assert c.goal == 'B' and [e.goal for e in events if e.outcome] == ['A']     # A preempted at B's start
+    ev = c.load(['a', 'b'], [1.0], [[0.0, 0.2]], [], [], 1.8, now=1.6, goal='D')
+    assert ev.level == 'OK'
+    commands, events = run(c, 1.6, 3.0)
+    ended = {e.goal: e.outcome.text for e in events if e.outcome}
+    assert 'replaced it before it started' in ended['C'] and 'took over' in ended['B']
+    assert c.goal == 'D'
+    within_limits(commands)
 
 
-def test_a_prepared_trajectory_is_refused_when_the_state_changed_or_it_came_too_late():
-    c = core(path=0.05)
-    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
-    prepared = c.prepare(['a', 'b'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5, splice_delay=0.02)
-    assert c.commit(prepared, now=0.6) is None                # too late: prepare again
-    prepared = c.prepare(['a', 'b'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5, splice_delay=0.02)
-    c.on_state([0.3, 0.0, 0.05], None, 0.5, now=0.5)          # a fault brakes meanwhile
-    assert c.mode == 'fault'
-    assert c.commit(prepared, now=0.51) is None
-    with pytest.raises(ValueError, match='unknown joints'):
-        c.prepare(['a', 'x'], [1.0], [[0.5, 0.5]], [], [], 0.0, now=0.5)
-
-
-def test_a_trajectory_that_ends_before_it_could_start_is_rejected_as_late_and_only_that_one():
-    """Its sender may plan a late trajectory again; a bad one it must not."""
+def test_a_first_point_due_after_the_stamp_that_is_the_reference_then_keeps_the_schedule_until_it():
+    """C is stamped 1.2 s with its first point 0.5 s later, where A (running) is then: what was scheduled from
+    1.2 s (B, at 1.5 s) is dropped, A runs on until 1.7 s and C carries on from it there exactly."""
     c = core()
-    late = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=11.01)
-    assert late.level == 'ERROR' and 'ends in the past' in late.message and late.values['late'] is True
+    first = quintic([0.0, 0.0], [1.0, 0.5], 3.0)
+    t = np.arange(0.0, 3.0 + 1e-9, 0.01)
+    c.load(['a', 'b'], t, *first.sample(t), 0.0, now=0.0, goal='A')
+    c.load(['a', 'b'], [1.0], [[0.0, 0.0]], [], [], 1.5, now=1.0, goal='B')
+    q0, v0, a0 = (x[:2] for x in first.state_at(1.7))
+    second = quintic(q0, [0.5, 0.5], 1.0, v0=v0, a0=a0)
+    ev = c.load(['a', 'b'], 0.5 + t[t <= 1.0], *second.sample(t[t <= 1.0]), 1.2, now=1.0, goal='C')
+    assert 'carries on' in ev.message
+    assert [e.goal for e in c.schedule.entries] == ['A', 'C'] and c.schedule.entries[1].start == pytest.approx(1.7)
+    assert c.reference(1.6)[0][:2] == pytest.approx(first.state_at(1.6)[0])
+    assert c.reference(2.2)[0][:2] == pytest.approx(second.state_at(0.5)[0])
+
+
+def test_a_first_point_away_from_the_reference_is_bridged_within_the_limits_and_runs_that_much_later():
+    """Stamp 0 and a first point due at once, 0.4 rad away: the fastest jerk-limited move gets there, then the
+    points run as given. The feedback's time in the points is negative over the bridge."""
+    c = core()
+    ev = c.load(['a', 'b'], [0.0, 1.0], [[0.4, 0.0], [0.6, 0.0]], [], [], 0.0, now=0.0, goal='g')
+    assert ev.level == 'OK' and 'bridged from the reference' in ev.message, ev.message
+    bridge = ev.values['bridge']
+    assert 0.3 < bridge < 1.5
+    assert c.trajectory_time(0.1) == pytest.approx(0.1 - bridge)
+    commands, _ = run(c, 0.0, bridge + 1.2)
+    within_limits(commands)
+    assert c.reference(bridge)[0][0] == pytest.approx(0.4, abs=1e-6)
+    assert c.reference(bridge + 1.0)[0][0] == pytest.approx(0.6, abs=1e-6)
+
+
+def test_a_lead_in_that_would_break_a_limit_is_bridged_instead():
+    """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest over 0.05 s needs more than the
+    10 rad/s^2 limit, so the reference is bridged there within the limits, never run with its commands limited."""
+    c = core()
+    event = c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0)
+    assert event.level == 'OK' and 'bridged' in event.message, event.message
+    commands, events = run(c, 0.0, 1.3)
+    within_limits(commands)
+    assert not [e for e in events if 'limited' in e.message]
+
+
+def test_a_start_already_past_is_refused_as_late():
+    c = core()
+    late = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.01)
+    assert late.level == 'ERROR' and 'in the past' in late.message and late.values['late'] is True
+    assert late.outcome.code == -3
     bad = c.load(['a', 'x'], [1.0], [[0.5, 0.5]], [], [], start=0.0, now=11.0)
     assert bad.level == 'ERROR' and 'unknown joints' in bad.message and bad.values['late'] is False
-    # Points already due, far from where the arm is: late as well.
-    behind = c.load(['a', 'b'], [0.5, 1.0], [[0.2, 0.0], [0.4, 0.0]], [], [], start=10.0, now=10.6)
-    assert behind.level == 'ERROR' and 'due at' in behind.message and behind.values['late'] is True
-    # Due points near the reference: the part still ahead runs.
-    caught_up = c.load(['a', 'b'], [0.5, 1.0], [[0.001, 0.0], [0.1, 0.0]], [], [], start=10.0, now=10.6)
-    assert caught_up.level == 'OK', caught_up.message
+    assert bad.outcome.code == -2
 
 
 def test_path_tolerance_violation_brakes_and_holds():
     c = core(path=0.05)
-    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
-    events = c.on_state([0.3, 0.0, 0.05], None, 0.5, now=0.5)
-    assert events[0].level == 'ERROR' and 'path tolerance' in events[0].message
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0, goal='g')
+    run(c, 0.0, 0.5)
+    events = c.on_state([0.3, 0.0, 0.05], None, 0.499, now=0.5)
+    assert events[0].level == 'ERROR' and 'path tolerance' in events[0].message and events[0].goal == 'g'
     assert c.mode == 'fault'
     q_end = c.reference(10.0)
     assert np.all(q_end[1] == 0)                          # at rest
     assert abs(q_end[0][0] - c.reference(0.5)[0][0]) < 0.5
+
+
+def test_a_late_state_is_judged_against_the_command_of_its_own_instant():
+    """A simulator whose states come 0.3 s after their stamps, tracking perfectly: no tracking error (the arm was
+    where it was told to be then), but a warning that the feedback is late. A state off the command of its
+    instant still aborts."""
+    c = core(path=0.05)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0, goal='g')
+    commands, _ = run(c, 0.0, 1.0)
+    then = commands[600]
+    events = c.on_state(then[1], then[2], then[0], now=0.9)
+    assert [e.level for e in events] == ['WARN'] and 'arrive late: 0.300 s' in events[0].message
+    assert c.mode == 'moving'
+    events = c.on_state(then[1] + [0.08, 0, 0], then[2], then[0], now=0.95)
+    assert events[0].level == 'ERROR' and 'path tolerance' in events[0].message
 
 
 def test_watchdog_reports_feedback_lost_and_refuses_to_move_blind():
@@ -141,12 +204,13 @@ def test_watchdog_reports_feedback_lost_and_refuses_to_move_blind():
 
 
 def test_the_watchdog_counts_only_while_the_loop_runs():
-    """A loop stalled longer than state_timeout could read no states meanwhile: the feedback
-    is lost only if none comes within state_timeout after the stall."""
+    """A loop stalled longer than state_timeout could read no states meanwhile: the feedback is lost only if
+    none comes within state_timeout after the stall."""
     c = core(state_timeout=0.2)
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0)
     c.advance(0.0)
-    assert c.advance(0.5) == [] and c.tick(0.5) == []         # stalled 0.5 s (holding: no delay to report)
-    assert c.tick(0.65) == []
+    c.advance(0.5)                                            # stalled 0.5 s
+    assert c.tick(0.5) == [] and c.tick(0.65) == []
     assert 'feedback lost' in c.tick(0.71)[0].message
 
 
@@ -161,7 +225,7 @@ def test_restored_feedback_from_a_moved_arm_is_held_where_it_is_not_driven_back(
 def test_future_start_stamp_waits_then_moves():
     c = core()
     ev = c.load(['a', 'b'], [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [], [], 5.0, now=4.0)
-    assert ev.level == 'OK'
+    assert ev.level == 'OK' and 'carries on' in ev.message
     assert abs(c.reference(4.5)[0][0]) < 1e-9           # waits at its place until the start
     assert c.reference(5.0)[0][0] == pytest.approx(0.0)
     assert c.reference(6.0)[0][0] == pytest.approx(1.0)
@@ -175,7 +239,7 @@ def test_future_start_stamp_waits_then_moves():
     (['a', 'b'], [1.0, 0.5], [[0, 0], [1, 1]], 'increase strictly'),
     (['a', 'b'], [1.0], [[np.nan, 0]], 'finite'),
     (['a', 'b'], [1.0], [[3.5, 0]], 'beyond its limit'),
-    (['a', 'b'], [0.2], [[2.0, 0]], 'between the points'),      # 10 rad/s there
+    (['a', 'b'], [0.2, 0.3], [[0, 0], [2.0, 0]], 'between the points'),      # 20 rad/s there
     (['a', 'b'], [1.0], [[0, 0, 0]], 'every point needs 2 positions'),
 ])
 @pytest.mark.parametrize('arrays', [False, True])
@@ -204,12 +268,11 @@ def test_a_trajectory_given_as_arrays_runs_as_the_same_one_given_as_lists():
 
 
 def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
-    from picking_core.trajectory import hold
     c = core()
     (q, qd, qdd), events = c.command(0.0)
     assert q == pytest.approx([0.0, 0.0, 0.05]) and not events
     # A reference beyond a position limit and far away (as a bug would make): limited and reported once.
-    c._set(hold(np.array([5.0, -1.0, 0.05]), 1.0), 0.0)
+    c.schedule.replace_all(Entry(0.0, hold(np.array([5.0, -1.0, 0.05]), 1.0), 0.0, kind='hold'))
     sent, reports = [], []
     for k in range(1, 2001):
         (q, qd, qdd), events = c.command(k * 1e-3)
@@ -221,26 +284,12 @@ def test_commands_never_leave_the_limits_nor_jump_and_say_so_once():
     assert np.all(steps <= np.array([2, 2, 0.3]) * 1e-3 * 1.02)             # never faster than the limit
     assert len(reports) == 1 and reports[0].level == 'WARN' and 'command limited' in reports[0].message
     assert "reference of a: its position 5 is beyond [-3, 3]" in reports[0].message
-    assert c.limited > 0
-
-
-def _the_one_limited_acceleration_report(c, until):
-    """Command every ms until ``until`` s: every acceleration sent within the limits, and one
-    report, of joint a's acceleration (returned)."""
-    reports = []
-    for now in np.arange(0.0, until, 1e-3):
-        (_, _, sent_qdd), events = c.command(now)
-        assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
-        reports += events
-    assert len(reports) == 1, [r.message for r in reports]
-    assert 'reference of a: its acceleration' in reports[0].message
-    return reports[0]
+    assert c.guard.limited > 0
 
 
 def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
-    """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline
-    through them overshoots the limit (the points themselves keep it). It starts 55 ms after its
-    first point, at rest until then, so that the lead-in to its first point run keeps the limit."""
+    """An LSPB sampled every 10 ms: its acceleration steps between two points, where the spline through them
+    overshoots the limit (the points themselves keep it)."""
     from picking_core import trajectory
     c = core()
     plan = trajectory.lspb([0.0, 0.0], [0.3, 0.0], 0.6, 9.8)        # 9.8 of the 10 rad/s^2 limit
@@ -248,109 +297,54 @@ def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
     q, qd, qdd = plan.sample(t - 0.055)
     assert (0.055 + plan.blend_time[0]) % 0.01 > 1e-3               # the steps fall between two points
     assert c.load(['a', 'b'], t, q, qd, qdd, 0.0, now=0.0).level == 'OK'
-    report = _the_one_limited_acceleration_report(c, until=0.7)
-    assert 'beyond the limit 10' in report.message and float(report.values['acceleration']) > 10
-    assert 'between the points' in report.message
+    reports = []
+    for now in np.arange(0.0, 0.7, 1e-3):
+        (_, _, sent_qdd), events = c.command(now)
+        assert np.all(np.abs(sent_qdd) <= [10, 10, 3])
+        reports += events
+    assert len(reports) == 1, [r.message for r in reports]
+    assert 'reference of a: its acceleration' in reports[0].message and 'between the points' in reports[0].message
 
 
-def test_a_trajectory_planned_from_another_reference_is_refused_as_stale_and_a_bad_one_is_not():
-    """A plan whose lead-in breaks a limit only because it starts away from where the reference
-    will be (made for a plan this controller did not run) may be planned again: refused as late.
-    One that starts there and breaks the limit by itself is at fault: not late."""
-    c = core()                                                # holding [0, 0] at rest
-    stale = c.load(['a', 'b'], [0.1, 0.5], [[0.5, 0.0], [0.6, 0.0]], [], [], start=0.0, now=1.0)
-    assert stale.level == 'ERROR' and 'not where the current reference will be' in stale.message
-    assert stale.values['late'] is True
-    bad = c.load(['a', 'b'], [0.1, 0.2], [[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0], [0.0, 0.0]], [], start=0.0, now=1.0)
-    assert bad.level == 'ERROR' and 'beyond' in bad.message and bad.values['late'] is False, bad.message
-    # Malformed, away from the reference as well: at fault, not stale.
-    twice = c.load(['a', 'b'], [0.5, 0.5], [[0.5, 0.0], [0.6, 0.0]], [], [], start=0.0, now=1.0)
-    assert twice.level == 'ERROR' and 'increase strictly' in twice.message and twice.values['late'] is False
-
-
-def test_a_late_trajectory_catches_up_over_a_longer_lead_in_within_the_limits():
-    c = core(path=0.3)
-    # Planned to start 40 ms ago from where the arm holds, at 0.3 rad/s: a 20 ms lead-in would need
-    # more than the 10 rad/s^2 limit to catch up; a longer one does not.
-    t = np.arange(0.0, 1.01, 0.01)
-    q = np.column_stack([0.3 * t, np.zeros_like(t)])
-    v = np.column_stack([np.full_like(t, 0.3), np.zeros_like(t)])
-    v[-1] = 0.0
-    event = c.load(['a', 'b'], t, q, v, [], start=9.96, now=10.0)
-    assert event.level == 'OK', event.message
-    assert c.next is None and c.lead_in_end - 10.0 > 0.02          # over a longer lead-in
-    sent = [c.command(10.0 + k * 1e-3) for k in range(300)]
-    assert max(abs(ref[1][0]) for ref, _ in sent) <= 2.0 + 1e-9
-    assert max(abs(ref[2][0]) for ref, _ in sent) <= 10.0 + 1e-9
-    assert not any(events for _, events in sent)                   # nothing limited
-
-
-def test_a_stalled_tick_delays_the_trajectory_instead_of_jumping_ahead():
+def test_a_stalled_tick_delays_the_schedule_instead_of_jumping_ahead():
+    """A 300 ms stall: the schedule goes on 250 ms later (the first 50 ms, the stall limit, still count), the
+    entry waiting for its stamp with it; the feedback's time in the points has the delay taken off; once the
+    arm holds with nothing scheduled the schedule's clock is the clock again."""
     c = core()
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
-    scheduled = c.prepare(['a', 'b'], [1.0], [[0.0, 0.0]], [], [], 0.0, now=1.2)
-    assert c.commit(scheduled, now=1.0).level == 'OK'         # takes over at 1.2 s
-    for t in np.arange(0.0, 0.5, 0.001):
-        assert c.advance(t) == []
-        c.command(t)
+    assert c.load(['a', 'b'], [1.0], [[0.0, 0.0]], [], [], 1.2, now=0.0, goal='next').level == 'OK'
+    run(c, 0.0, 0.5)
     before = c.reference(0.499)[0]
     events = c.advance(0.799)                                 # 300 ms without a tick
     assert len(events) == 1 and 'stalled for 0.300 s' in events[0].message
-    assert events[0].values['delay'] == pytest.approx(0.25)   # the first 50 ms (stall_limit) still count
+    assert events[0].values['delay'] == pytest.approx(0.25)
     after = c.reference(0.799)[0]
-    assert after == pytest.approx(c.traj.state_at(0.549)[0])
     assert np.abs(after - before).max() < 2.0 * 0.051          # within vmax of the last command, no jump
+    assert c.trajectory_time(0.799) == pytest.approx(0.549)
     (q, _, _), limited = c.command(0.799)
     assert limited == [] and q == pytest.approx(after)
-    assert c.next.t_splice == pytest.approx(1.45)              # the scheduled one moved with it
-    assert c.next.origin == pytest.approx(1.45)
-    assert c.advance(0.8) == []
-    assert c.advance(1.2) == []                                # reported at most once a second ...
-    assert c.delayed == pytest.approx(0.25 + 0.35)            # ... but every delay counts
-    assert c.advance(2.5)[0].values['delay'] == pytest.approx(1.25)
-
-
-def test_the_trajectory_time_counts_from_the_stamp_less_the_stalls_delays():
-    """What feedback reports as the reference's time_from_start: its sender learns how late its
-    plan runs. A trajectory counts from its stamp (carried on or led in), and each stall's delay
-    is taken off (the scheduled one's too: see the test above)."""
-    c = core()
-    assert c.load(['a', 'b'], [0.5, 2.0], [[0.0, 0.0], [1.0, 0.0]], [], [], 10.0, now=10.0).level == 'OK'
-    assert c.trajectory_time(10.3) == pytest.approx(0.3)
-    for t in np.arange(10.0, 10.5, 0.001):
+    run(c, 0.8, 1.45)
+    assert c.goal is None or c.goal != 'next'
+    run(c, 1.45, 1.46)
+    assert c.goal == 'next'                                   # took over at 1.2 s of the schedule, 1.45 s of the clock
+    assert c.delayed == pytest.approx(0.25)
+    for t in np.arange(1.46, 3.0, 0.01):
         c.advance(t)
         c.command(t)
-    c.advance(10.799)                                         # stalled 0.3 s: 0.25 s of delay
-    assert c.trajectory_time(10.799) == pytest.approx(0.549)
-    assert c.reference(10.799)[0] == pytest.approx(c.traj.state_at(10.799 - 10.25)[0])
-    # A trajectory that comes after the stall counts from its own stamp, led in from the reference.
-    assert c.load(['a', 'b'], [1.0, 2.0], [[0.0, 0.0], [0.0, 0.1]], [], [], 11.0, now=10.8, goal='g').level == 'OK'
-    assert c.trajectory_time(11.5) == pytest.approx(0.5)
-    assert c.cancel('g', 11.6)[0]                             # braking: no points of its own run
-    assert c.trajectory_time(11.7) is None
+        c.on_state(c.reference(t)[0], [0, 0, 0], t, now=t)
+    assert c.mode == 'holding' and c.delay == 0.0
 
 
-def test_a_tracking_check_after_a_stall_compares_with_the_delayed_reference():
+def test_a_state_measured_during_a_stall_is_not_judged_and_one_after_it_is():
+    """A whole machine stalled: the simulator catches up and sends states stamped inside the stall, where the
+    command is unknown; those are not judged. A state stamped after the stall is, against the command then."""
     c = core(path=0.05)
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
-    c.advance(0.5)
-    c.advance(1.0)                                            # stalled: 0.45 s later
-    held = c.traj.state_at(0.55)[0]                           # where the drive held the arm
-    assert c.on_state(held, [0, 0, 0], 1.0, now=1.0) == []
-    assert c.mode == 'moving'
-
-
-def test_a_state_measured_during_a_stall_is_not_checked_against_the_rewritten_reference():
-    """A whole machine stalled: the simulator catches up and sends states stamped inside the
-    stall, after this loop has delayed its trajectory; those are not compared (a state stamped
-    after the stall is)."""
-    c = core(path=0.05)
-    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
-    c.advance(0.5)
-    c.advance(1.0)                                            # stalled: the trajectory goes on 0.45 s later
-    inside = c.traj.state_at(0.9)[0]                          # where a drive following on would be at 0.9 s
-    assert c.on_state(inside, [0, 0, 0], 0.9, now=1.001) == []
-    events = c.on_state(inside, [0, 0, 0], 1.001, now=1.002)
+    run(c, 0.0, 0.5)
+    c.advance(1.0)                                            # stalled
+    c.command(1.0)
+    assert [e for e in c.on_state([0.9, 0.0, 0.05], [0, 0, 0], 0.8, now=1.001) if e.level == 'ERROR'] == []
+    events = c.on_state([0.9, 0.0, 0.05], [0, 0, 0], 1.0, now=1.002)
     assert events and events[0].level == 'ERROR' and 'path tolerance' in events[0].message
 
 
@@ -360,16 +354,14 @@ def test_stall_limit_must_be_positive(limit):
         ControllerCore(NAMES, [-3] * 3, [3] * 3, [2] * 3, [10] * 3, stall_limit=limit)
 
 
-
 def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
-    """A lead-in led in too hard once left the reference a little beyond the speed limit (the command
-    was limited): a new trajectory is spliced onto the state commanded, within the limits, instead of
-    being refused for a lead-in that starts beyond the limit."""
+    """A reference a little beyond the speed limit (the command was limited): a new trajectory is spliced onto
+    the state commanded, within the limits, instead of being refused for starting beyond the limit."""
     c = core()
     coeffs = np.zeros((1, 6, 3))
     coeffs[0, 1, 0], coeffs[0, 2, 0] = 2.05, 0.5          # a at 2.05 rad/s (limit 2), still speeding up
     coeffs[0, 0, 2] = 0.05
-    c._set(PiecewisePolynomial([0.0, 3.0], coeffs), 0.0)
+    c.schedule.replace_all(Entry(0.0, PiecewisePolynomial([0.0, 3.0], coeffs), 0.0))
     c.mode = 'moving'
     now = 0.5
     q0 = c.reference(now)[0][0]
@@ -383,24 +375,27 @@ def test_a_reference_left_beyond_a_limit_still_takes_a_new_trajectory():
     assert v.max() <= 2.0 + 1e-3
 
 
-def test_a_lead_in_too_short_for_the_acceleration_limit_is_refused_not_limited():
-    """A first point 0.05 s ahead and 0.02 rad away: the lead-in from rest needs more than the
-    10 rad/s^2 limit. Refused with the reason (the trajectory itself is at fault: it starts where
-    the reference is not, but on time), never run with its commands limited."""
+def test_cancel_ends_a_waiting_goal_at_once_and_brakes_a_running_one():
     c = core()
-    event = c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], 0.0, now=0.0)
-    assert event.level == 'ERROR' and 'lead-in from the current reference' in event.message
-    assert 'beyond its limit 10' in event.message
-    assert c.mode == 'holding' and c.command(0.01)[1] == []
-    # The same trajectory late, from a reference it was not planned from: late, to be planned again.
-    late = c.load(['a', 'b'], [0.05, 1.0], [[0.02, 0.0], [0.1, 0.0]], [], [], start=-0.02, now=0.0)
-    assert late.values['late'] is True and late.outcome.code == -3
+    c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [], [], 0.0, now=0.0, goal='run')
+    c.load(['a', 'b'], [1.0], [[0.0, 0.0]], [], [], 1.5, now=0.0, goal='wait')
+    ok, events = c.cancel('wait', 0.5)
+    assert ok and events[0].outcome.status == 'canceled' and [e.goal for e in c.schedule.entries] == ['run']
+    run(c, 0.0, 0.6)
+    ok, events = c.cancel('run', 0.6)
+    assert ok and 'braking' in events[0].message
+    commands, _ = run(c, 0.6, 1.5)
+    within_limits(commands)
+    assert np.abs(commands[-1][2]).max() == 0.0
+    t = 1.5
+    events = c.on_state(c.reference(t)[0], [0, 0, 0], t, now=t)
+    assert events[0].outcome.status == 'canceled' and events[0].goal == 'run'
+    assert c.cancel('run', 1.6) == (False, [])
 
 
 def test_running_a_trajectory_of_many_points_never_imports_numba():
-    """The planner's compiled samplers are the planner's: a controller that loads, checks and
-    runs a trajectory of 40 points (its spline sampled at hundreds of times) must not stall its
-    loop for numba's import (a second or more on a cold cache)."""
+    """A controller that loads, checks and runs a trajectory of 40 points must not stall its loop for numba's
+    import (a second or more on a cold cache)."""
     import subprocess
     import sys
     script = '''
@@ -413,8 +408,10 @@ times = np.linspace(0.5, 4.0, 40)
 pos = np.stack([0.5 * np.sin(times), 0.3 * (1.0 - np.cos(times))], axis=1)
 event = c.load(['a', 'b'], times, pos, [], [], 0.0, now=0.0)
 assert event.level == 'OK', event.message
+event = c.load(['a', 'b'], [0.0, 1.0], [[0.3, 0.1], [0.2, 0.0]], [], [], 0.0, now=0.1)
+assert event.level == 'OK', event.message
 for t in np.linspace(0.0, 4.5, 451):
-    c.reference(t)
+    c.command(t)
     c.on_state(c.reference(t)[0], None, t, now=t)
 print('numba' in sys.modules)
 '''

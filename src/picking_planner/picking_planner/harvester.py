@@ -35,7 +35,7 @@ from picking_common.status import Diagnostics, Level, stamp_key, status, status_
 from picking_common.topics import BURST, RELIABLE, LatestMessage
 
 from picking_core.coordination import PlatformRun
-from .goal_flow import msg_pose
+from picking_common.poses import msg_pose
 from .parameters import HARVESTER as PARAMS, PARAMS as PLANNER_PARAMS
 from picking_core.kinematics import ArmModel
 from picking_core.platform import SAMPLE, Coordinator, Platform, harvest_from_parameters

@@ -1,0 +1,79 @@
+"""A goal's plan from a start state, checked against the world (pure core)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import around
+from ..approaches import Blocked
+from ..collision import STEP as COLLISION_STEP, Allowed
+from ..harvest import Harvest, HarvestPlan
+from ..pick_cycle import PickCycle
+from ..planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS, Plan
+from .requests import Kind
+
+
+@dataclass(frozen=True)
+class Planned:
+    """A goal's plan: ``plan`` (its trajectory, segments and joint names), ``regions`` where touching is allowed
+    along it (its apples), and a harvest's :class:`~picking_core.harvest.HarvestPlan` (its apples' times)."""
+
+    plan: Plan
+    regions: tuple = ()
+    harvest: HarvestPlan | None = None
+
+
+class GoalPlanner:
+    """Plans goals with a :class:`~picking_core.planning.Planner`, the pick cycle's settings and a
+    :class:`~picking_core.collision.World` (each as it is when planning starts)."""
+
+    def __init__(self, planner, pick, world):
+        self.planner, self.pick, self.world = planner, pick, world
+
+    def check(self, target):
+        """ValueError when ``target`` names a method this planner does not know (before any planning)."""
+        self._planner_for(target)
+
+    def plan(self, target, start):
+        """The :class:`Planned` of ``target`` from ``start`` (a :class:`~.start.Start`); raises ValueError (or
+        Unreachable, Blocked) with the reason."""
+        checker = self.world.checker
+        if target.kind == Kind.POSE:
+            planned = Planned(around.plan_pose(self._planner_for(target), checker, start.state, target.pose,
+                                               target.method or None))
+        elif target.kind == Kind.PATH:
+            planned = Planned(around.plan_path(self._planner_for(target), checker, start.state, list(target.poses),
+                                               target.method or None))
+        elif target.kind == Kind.PICK:
+            planned = Planned(self._cycle(checker).plan(start.state, target.pose, gripper_start=start.gripper))
+        else:
+            harvest = Harvest(self._cycle(checker)).plan(start.state, list(target.poses), gripper_start=start.gripper,
+                                                          indices=list(target.indices))
+            planned = Planned(harvest.plan, harvest=harvest)
+        regions = tuple(Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in target.apples())
+        planned = Planned(planned.plan, regions, planned.harvest)
+        # Every plan is checked whole before it is sent (a pick's cycles were planned clear of the world; this
+        # also catches a pose or path goal's plan and a harvest's way home).
+        contact = self.world.check(planned.plan.trajectory, list(regions), slack=COLLISION_STEP / 2)
+        if contact is not None:
+            raise Blocked(f'the plan would hit an obstacle: {contact}')
+        return planned
+
+    def _cycle(self, checker):
+        return PickCycle(self.planner, self.pick, checker)
+
+    def _planner_for(self, target):
+        """The planner for a goal that names its own method (empty: the planner's settings). A method that steps
+        the acceleration (cubic, LSPB), asked for by name, is planned as the paper defines it: with the velocity
+        and acceleration limits, not the jerk limits."""
+        method = target.method
+        if not method or target.kind not in (Kind.POSE, Kind.PATH):
+            return self.planner
+        methods, parameter = (POSE_METHODS, 'method') if target.kind == Kind.POSE else (PATH_METHODS, 'path_method')
+        if method not in methods:
+            raise ValueError(f'unknown {parameter} {method!r}; choose one of {", ".join(methods)}')
+        if method in JERK_UNBOUNDED and self.planner.settings.limit_jerk:
+            return self.planner.with_settings(limit_jerk=False, **{parameter: method})
+        return self.planner

@@ -1,0 +1,511 @@
+"""The planner's goal flow: goals through planning to the controller and back (pure core).
+
+:class:`GoalRunner` takes goals, lets them wait while the arm's state or a controller is unknown (or the
+controller has not answered the plan before: one plan in flight at a time, the newest goal waiting),
+plans each from a state it knows (:mod:`.start`), sends the plan to the controller through its
+:class:`Port`, and turns the controller's answers into each goal's transitions and end
+(:mod:`.lifecycle`). A running goal's target can be moved (:meth:`GoalRunner.retarget`: a stream of
+re-targets, the newest winning), and a running harvest whose apples not yet started a changed world
+blocks is planned again around it from the box after the apple in hand (:meth:`GoalRunner.world_changed`).
+
+The node implements the port (ROS messages, the action client, the clock) and calls the runner's
+``on_*`` methods with the controller's answers; everything else is here, tested without ROS.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import replace
+from typing import Protocol
+
+import numpy as np
+
+from ..collision import STEP as COLLISION_STEP
+from ..harvest import HarvestRun
+from ..kinematics.paths import check_joint_limits
+from ..trajectory import waypoints
+from .intake import WAIT_LIMIT, GoalBook, Waiting
+from .lifecycle import LATE_REPLANS, Ending, Flight, Lifecycle, Outcome, State
+from .requests import Kind, Rest, Target
+from .start import Running, Start, Timing, choose_start
+
+LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
+
+
+class Port(Protocol):
+    """What the goal flow needs from its node (times in s)."""
+
+    def wall(self) -> float: ...                 # time.monotonic()
+    def now(self) -> float: ...                  # the controller's clock (ROS time)
+    def ready(self) -> str | None: ...           # why no goal can be planned now (no joint_states, no controller)
+    def reference(self): ...                     # ((q, qd, qdd), gripper) the controller commands now, or None
+    def measured(self): ...                      # (q, gripper) of the newest joint_states, or None
+    def goal_planner(self): ...                  # the GoalPlanner of the moment (its settings may change)
+    def send(self, flight, points, stamp): ...   # the plan's points (t, q, qd, qdd) to the controller, stamped
+    def cancel(self, flight): ...                # cancel the flight's goal at the controller
+    def status(self, level, text, **values): ... # publish a planner_status; returns what was published
+    def repeat(self, message): ...               # publish an earlier status again (a goal sent again)
+    def log(self, level, text): ...
+
+
+class GoalRunner:
+    """One planner's goals, through the :class:`Port` ``port``."""
+
+    def __init__(self, port, timing=None):
+        self.port = port
+        self.book, self.waiting, self.lifecycle = GoalBook(), Waiting(), Lifecycle()
+        self.timing = timing or Timing()
+        self.running = None              # Running: our newest plan the controller accepted
+        self.harvests = {}               # goal key -> HarvestRun of the harvests sent and not ended, oldest first
+        self.retargets = {'spliced': 0, 'replaced': 0}
+        self._serial = itertools.count(1)
+        self._superseded, self._superseded_said = 0, -math.inf
+
+    # -- goals in ------------------------------------------------------------------------------
+    def take(self, goal, content=None):
+        """A new goal; ``content`` (compared with ==) tells the same goal sent again, answered again and not
+        planned twice (None: never a resend)."""
+        if content is not None:
+            repeat, answer = self.book.repeat(goal.key, content, goal.came)
+            if repeat:
+                if answer is not None:
+                    self.port.repeat(answer)
+                self.port.log('INFO', f'goal {goal.key} came again: its answer was sent again, it is not planned twice')
+                return
+        try:
+            self.port.goal_planner().check(goal.target)
+        except ValueError as exc:
+            self.end(goal, Ending(Outcome.REFUSED, str(exc)))
+            return
+        self._handle(goal)
+
+    def retarget(self, pose, wall):
+        """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
+        the same goal; a newer re-target arriving while this one waits replaces it. Returns None, or why the
+        re-target was not taken (no such goal; a pick whose gripper has closed)."""
+        goal = self._retargetable()
+        if goal is None:
+            return 'no pose or pick goal runs to move'
+        flight = self.lifecycle.flights.get(goal.key)
+        if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
+                flight.elapsed >= flight.planned.plan.extra.get('grasp_start', math.inf):
+            return 'the gripper has closed on the apple: its target no longer moves'
+        self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1))
+        return None
+
+    def count_replaced(self):
+        """A re-target that a newer one replaced before it was taken."""
+        self.retargets['replaced'] += 1
+
+    def _retargetable(self):
+        waiting = self.waiting.goal
+        if waiting is not None and waiting.kind in (Kind.POSE, Kind.PICK):
+            return waiting
+        flights = [f for f in self.lifecycle.flights.values() if f.goal.kind in (Kind.POSE, Kind.PICK) and not f.cancel]
+        return max(flights, key=lambda f: f.sent).goal if flights else None
+
+    def cancel(self, key):
+        """Cancel goal ``key``: at the controller when its plan went out (the arm brakes to rest), at once when it
+        waits. False when no such goal is under way."""
+        flight = self.lifecycle.flights.get(key)
+        if flight is not None:
+            flight.cancel = True
+            if flight.handle is not None:
+                self.port.cancel(flight)
+            return True
+        if self.waiting.goal is not None and self.waiting.goal.key == key:
+            self.end(self.waiting.take(), Ending(Outcome.CANCELED, 'canceled before it was planned'))
+            return True
+        return False
+
+    def cancel_all(self):
+        """Cancel every goal under way; returns how many."""
+        keys = list(self.lifecycle.flights) + ([self.waiting.goal.key] if self.waiting.goal is not None else [])
+        return sum(self.cancel(k) for k in keys)
+
+    def blocked(self):
+        """Why no goal can be planned now, or None."""
+        why = self.port.ready()
+        if why is None and self.lifecycle.unanswered():
+            why = 'the controller has not answered the last plan yet'
+        return why
+
+    def _handle(self, goal):
+        if self.blocked() is None:
+            self._plan_and_send(goal)
+            return
+        old = self.waiting.put(goal)
+        if old is not None and old.key == goal.key:
+            self.retargets['replaced'] += 1          # a newer target of the same goal: it wins
+        elif old is not None:
+            self.end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
+
+    def tick(self):
+        """A tenth of a second: the waiting goal, overdue answers, a running harvest's apples."""
+        self._serve_waiting()
+        for flight, ending in self.lifecycle.overdue(self.port.wall(), self.schedule_now()):
+            if flight.handle is not None:
+                self.port.cancel(flight)
+            self.end(flight.goal, ending, flight.duration)
+        self._harvest_progress()
+
+    def _serve_waiting(self):
+        if self.waiting.goal is None:
+            return
+        why = self.blocked()
+        if why is None:
+            self._plan_and_send(self.waiting.take())
+            return
+        if 'not answered' in why:
+            return
+        expired = self.waiting.expired(self.port.wall(), ready=False)
+        if expired is not None:
+            self.refuse(expired, f'{why} (waited {WAIT_LIMIT:g} s)')
+
+    def schedule_now(self):
+        """The controller's schedule clock now, as its feedback says (s)."""
+        return self.port.now() - self.timing.delay
+
+    # -- planning and sending ---------------------------------------------------------------------
+    def _plan_and_send(self, goal):
+        t0 = time.perf_counter()
+        try:
+            planner = self.port.goal_planner()
+            start, planned = self._plan(goal, planner)
+            names = tuple(planned.plan.joint_names or planner.planner.arm.joint_names)
+            points = self._points(planner, planned, start, names)
+        except ValueError as exc:
+            self.refuse(goal, str(exc))
+            return
+        took = time.perf_counter() - t0
+        start = self._in_time(start, took)
+        self.timing.planned(goal.kind.value, took)
+        replaces = self.lifecycle.flights.get(goal.key) if goal.rest is not None else None
+        flight = Flight(goal, planned, start.time or None, names, self.port.wall())
+        flight.extra = self._figures(goal, planned, start, took, planner)
+        flight.serial, flight.replaces = next(self._serial), replaces
+        self.lifecycle.sent(flight)
+        if goal.kind == Kind.HARVEST:
+            self._harvest_sent(goal, planned, flight)
+        self.port.send(flight, points, start.time)
+        self.port.log('INFO', f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
+                              f'{start.words()}, planned in {took * 1e3:.1f} ms')
+
+    def _plan(self, goal, planner):
+        """``(start, planned)``: where the plan starts and the plan."""
+        if goal.rest is not None:
+            start = self._in_the_box(goal.key, goal.rest.at, goal.rest.plan_time)
+            if start is None:
+                raise ValueError('the harvest it runs is no longer the one the controller runs')
+        else:
+            at = self.timing.earliest(goal.kind.value, goal.attempt, self.port.now())
+            start = self._after_apple_in_hand(at) if goal.kind == Kind.HARVEST else None
+            if start is None:
+                start = choose_start(self.running, at, self.port.reference(), self.port.measured())
+        return start, planner.plan(goal.target, start)
+
+    def _after_apple_in_hand(self, at):
+        """A new harvest while one runs takes over at rest in the box after the apple in hand: its Start, or None when
+        no harvest of ours runs."""
+        for key, run in reversed(list(self.harvests.items())):
+            if run.start is not None and key in self.lifecycle.flights:
+                t = run.after_apple_in_hand(at)
+                apple = next((a for a in run.plan.apples if abs(run.start + a.end - t) < 1e-9), None)
+                return None if apple is None else self._in_the_box(key, t, apple.end)
+        return None
+
+    def _in_the_box(self, key, at, plan_time):
+        """The Start at rest in the box ``plan_time`` s into goal ``key``'s running plan (schedule time ``at``), or
+        None when that plan is not the one the controller runs."""
+        running, current = self.running, self.lifecycle.flights.get(key)
+        if running is None or not running.usable or current is None or running.key != current.serial:
+            return None
+        return Start(*running.at_plan_time(plan_time), at, 'plan')
+
+    def _points(self, planner, planned, start, names):
+        """The plan's points, checked as the controller will check them (a plan it would refuse is never sent)."""
+        from ..kinematics import Unreachable
+        arm, period = planner.planner.arm, planner.planner.settings.sample_period
+        before = np.concatenate([start.state[2], np.zeros(len(names) - arm.dof)])
+        points = waypoints(planned.plan.trajectory, period, before=before)
+        try:
+            check_joint_limits(arm, *points, names=list(names))
+        except Unreachable as exc:
+            raise ValueError(f'the plan breaks a limit (from {start.words()}: the arm\'s motion cannot be carried on '
+                             f'within it): {exc}') from None
+        return points
+
+    def _in_time(self, start, took):
+        """A start that planning ran past, or that leaves less than the time planning took to send a plan of this size
+        and have it checked, goes later as it is when the arm rests there (nothing moves until then: the end of our
+        plan, or the controller's reference at rest). Any other start is sent as planned (the controller refuses it
+        if its time has passed, and it is planned again)."""
+        if not start.time or np.abs(start.state[1]).any() or np.abs(start.state[2]).any():
+            return start
+        if start.source == 'plan' and (self.running is None or start.time < self.running.end):
+            return start
+        soonest = self.schedule_now() + self.timing.lead + took
+        return replace(start, time=soonest) if soonest > start.time else start
+
+    @staticmethod
+    def _figures(goal, planned, start, took, planner):
+        plan = planned.plan
+        summary = plan.summary(planner.planner.settings.sample_period)
+        return dict(method=plan.method, duration=plan.duration, start=start.source,
+                    peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
+                    segments='; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments),
+                    planning_ms=took * 1e3, attempt=goal.attempt + 1, retargets=goal.retargets, **plan.extra)
+
+    def _harvest_sent(self, goal, planned, flight):
+        for run in self.harvests.values():           # the one it replaces keeps the apples in the box by then
+            if flight.start is not None:
+                run.until = min(run.until, flight.start)
+        before = self.harvests.pop(goal.key, None)
+        self.harvests[goal.key] = HarvestRun(planned.harvest, flight.start,
+                                             before=before if goal.rest is not None else None)
+        for skip in planned.harvest.skipped:
+            self._apple(goal, skip.index, 'skipped', skip.reason)
+
+    # -- the controller's answers ------------------------------------------------------------------
+    def on_response(self, flight, accepted, handle=None):
+        """The controller's goal response to ``flight``'s plan."""
+        ending = self.lifecycle.response(flight, accepted)
+        self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent)
+        if ending is not None:
+            self._not_run(flight, ending.message)
+        elif self.lifecycle.current(flight):
+            flight.handle = handle
+            self.running = Running(flight.planned.plan.trajectory, flight.names, flight.start, flight.serial,
+                                   self.port.goal_planner().planner.arm.dof)
+            if flight.goal.retargets:
+                self.retargets['spliced'] += 1
+            self._transition(flight, 'accepted', f"{flight.extra['method']}, {flight.duration:.3f} s" + ''.join(
+                f", {flight.extra[k]}" for k in ('approach', 'detours') if k in flight.extra),
+                latency_ms=(self.port.wall() - flight.goal.came) * 1e3)
+            if flight.cancel:
+                self.port.cancel(flight)
+        elif handle is not None:
+            self.port.cancel(flight)                  # ended meanwhile (overdue), or planned again since
+        self._serve_waiting()
+
+    def on_feedback(self, flight, now, elapsed, tracking_error, desired=None):
+        """The controller's feedback on ``flight``'s plan: at clock time ``now`` its reference is ``elapsed`` s into
+        the plan's points, at ``desired`` (``{joint: position}``). Where the desired positions are not the plan's at
+        ``elapsed`` (the controller brakes, or runs something else), where the plan is stays unknown."""
+        if not self.lifecycle.current(flight):
+            return
+        if elapsed is not None and desired is not None and not _on_plan(flight, elapsed, desired):
+            elapsed = None
+        if elapsed is not None:
+            if flight.start is None:                  # stamped 0: where the controller put it
+                flight.start = now - self.timing.delay - elapsed
+                self._learnt_start(flight)
+            else:
+                self.timing.heard(now, flight.start, elapsed)
+        if self.lifecycle.feedback(flight, elapsed, tracking_error):
+            self._transition(flight, 'executing', 'the controller runs its plan')
+        if flight.goal.feedback is not None:
+            phase, left = flight.phase()
+            flight.goal.feedback(phase, left, tracking_error)
+
+    def _learnt_start(self, flight):
+        if self.running is not None and self.running.key == flight.serial:
+            self.running = replace(self.running, start=flight.start)
+        run = self.harvests.get(flight.goal.key)
+        if run is not None and run.start is None:
+            run.start = run.first = flight.start
+
+    def on_result(self, flight, status, code, text):
+        """The controller's result for ``flight``'s plan (``status``: 'succeeded', 'canceled' or 'aborted')."""
+        ending = self.lifecycle.result(flight, status, code, text)
+        if self.running is not None and self.running.key == flight.serial:
+            self.running = replace(self.running, ended=status)
+            if status == 'succeeded' and not self.lifecycle.flights:
+                self.timing.delay = 0.0               # the arm holds with nothing scheduled: no delay left
+        if ending is None:
+            return
+        if ending.late:
+            self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent, late=True)
+        if not ending.late:
+            self.end(flight.goal, ending, flight.duration)
+        elif flight.goal.attempt >= LATE_REPLANS:
+            self.refuse(flight.goal, f'its plan reached the controller too late {flight.goal.attempt + 1} times '
+                                     f'(a stalled or overloaded machine?): {ending.message}', ending.code)
+        else:
+            if getattr(flight, 'replaces', None) is not None:   # the plan it was to take over from runs on
+                self.lifecycle.flights[flight.goal.key] = flight.replaces
+            self.port.log('WARN', f'{flight.goal.kind.value} goal {flight.goal.key}: the controller got its plan too '
+                                  f'late ({ending.message}); planning it again, further ahead')
+            self.timing.delay = 0.0
+            self._handle(flight.goal.again(attempt=flight.goal.attempt + 1))
+
+    def _not_run(self, flight, why):
+        """``flight``'s plan will not run: its goal is refused; the rest of a harvest planned again stops the plan it
+        was to take over from (that one would hit what changed)."""
+        old = getattr(flight, 'replaces', None)
+        if old is not None and old.handle is not None:
+            self.lifecycle.flights[flight.goal.key] = old
+            self._stop(old, f'{flight.goal.rest.why}, and the rest could not be planned again around it ({why})')
+            return
+        self.end(flight.goal, Ending(Outcome.REFUSED, why))
+
+    def refuse(self, goal, why, code=0):
+        """``goal`` cannot be planned or sent: refused with ``why`` (the rest of a harvest: see :meth:`_not_run`)."""
+        running = self.lifecycle.flights.get(goal.key)
+        if goal.rest is not None and running is not None and running.handle is not None:
+            self._stop(running, f'{goal.rest.why}, and the rest could not be planned again around it ({why})')
+            return
+        if goal.retargets and running is not None:
+            self.port.log('WARN', f'{goal.kind.value} goal {goal.key}: its new target was refused ({why}); the plan '
+                                  'before it runs on')
+            self._transition(running, 'retarget refused', why)
+            return
+        self.end(goal, Ending(Outcome.REFUSED, why, code))
+
+    # -- ends and statuses ------------------------------------------------------------------------
+    def end(self, goal, ending, duration=0.0):
+        """A goal's final answer: on planner_status, in the log, and to its action client."""
+        outcome = ending.outcome
+        level = LEVELS.get(outcome, 'ERROR')
+        text = f'{goal.kind.value} goal {outcome.word}: {ending.message}'
+        values = self._harvest_ended(goal, outcome, ending) if goal.kind == Kind.HARVEST else {}
+        if 'summary' in values:
+            text += f" ({values.pop('summary')})"
+        self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
+        if outcome == Outcome.SUPERSEDED:
+            self._superseded += 1
+            if self.port.wall() - self._superseded_said > 1.0:
+                self.port.log('WARN', f'{self._superseded} goals superseded by newer ones')
+                self._superseded, self._superseded_said = 0, self.port.wall()
+        else:
+            self.port.log('ERROR' if level == 'ERROR' else 'INFO', text)
+        if goal.finish is not None:
+            goal.finish(outcome, ending.message, ending.code, duration)
+
+    def _answer(self, goal, level, text, **values):
+        stamp = {'stamp': goal.stamp} if goal.stamp else {}
+        message = self.port.status(level, text, goal=goal.key, kind=goal.kind.value, **stamp, **values)
+        self.book.answered(goal.key, message)
+
+    def _transition(self, flight, state, words, **values):
+        goal = flight.goal
+        again = ' again (the last plan reached the controller too late)' if goal.attempt else ''
+        moved = f' (target moved {goal.retargets} times)' if goal.retargets else ''
+        self._answer(goal, 'OK', f'{goal.kind.value} goal {state}{again}{moved}: {words}', state=state,
+                     **flight.extra, **values)
+
+    # -- a changed world ---------------------------------------------------------------------------
+    def world_changed(self):
+        """The world changed (a new scene or canopy): the rest of every plan the controller runs is checked
+        against it. A harvest that would touch something only after the apple in hand is planned again from the
+        box after it, its apples not started around the new world (the same goal goes on); any other plan that
+        would now touch something is stopped (the controller brakes to rest; the goal ends aborted with why)."""
+        now, world = self.schedule_now(), self.port.goal_planner().world
+        for flight in list(self.lifecycle.flights.values()):
+            if flight.handle is None or flight.cancel or flight.stopped or flight.start is None:
+                continue
+            rest = _Rest(flight.planned.plan.trajectory, max(0.0, now - flight.start))
+            if rest.duration <= 0.0:
+                continue
+            contact = world.check(rest, list(flight.planned.regions), slack=COLLISION_STEP / 2)
+            if contact is None:
+                continue
+            changed = f'the world changed while it ran: {contact} (t from the change)'
+            again = self._harvest_rest(flight, now, contact, changed)
+            if again is None:
+                self._stop(flight, changed)
+                continue
+            words = (f'{changed}; the apples not started ({" ".join(str(i) for i in again.target.indices)}) are '
+                     'planned again around it, from the box after the apple in hand')
+            self.port.log('WARN', f'harvest goal {flight.goal.key}: {words}')
+            self._answer(flight.goal, 'WARN', f'harvest goal replanned: {words}', state='replanned')
+            self._handle(again)
+
+    def _harvest_rest(self, flight, now, contact, changed):
+        """The goal of a running harvest, its apples not started by the end of the apple in hand, to be planned
+        again around the changed world (None: not a harvest, the contact comes sooner, or no apple is left)."""
+        run = self.harvests.get(flight.goal.key)
+        if flight.goal.kind != Kind.HARVEST or run is None or run.start is None:
+            return None
+        at = run.after_apple_in_hand(now + self.timing.lead + 1.5 * self.timing.expected('harvest'))
+        left = [a.index for a in run.plan.apples if run.start + a.start >= at - 1e-9]
+        if now + contact.time <= at or not left:
+            return None
+        in_hand = next(a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6)
+        poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses))
+        target = Target(Kind.HARVEST, tuple(poses[i] for i in left), indices=tuple(left))
+        return flight.goal.again(target=target, rest=Rest(changed, at, in_hand), came=self.port.wall())
+
+    def _stop(self, flight, why):
+        """Stop a running plan at the controller (it brakes to rest): its goal ends aborted, ``why``."""
+        flight.stopped = f'{why}; the arm braked to rest'
+        self.port.log('WARN', f'{flight.goal.kind.value} goal {flight.goal.key}: {flight.stopped}')
+        self.port.cancel(flight)
+
+    # -- harvests ---------------------------------------------------------------------------------
+    def _harvest_progress(self):
+        """Each apple of a running harvest reported once it is in the box (by the controller's schedule)."""
+        now = self.schedule_now()
+        for key, run in self.harvests.items():
+            if run.start is None:
+                continue
+            for k, apple in run.newly_picked(now):
+                self._apple_in_box(key, run, k, apple)
+
+    def _apple_in_box(self, key, run, k, apple):
+        flight = self.lifecycle.flights.get(key)
+        goal = flight.goal if flight is not None else None
+        if goal is not None:
+            self._apple(goal, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})', picked=k,
+                        started=apple.start, at=apple.end)
+
+    def _apple(self, goal, index, word, words, **values):
+        state = {'picked': 'executing', 'skipped': 'planned'}.get(word, 'ended')
+        stamp = {'stamp': goal.stamp} if goal.stamp else {}
+        self.port.status('OK' if word == 'picked' else 'WARN', f'harvest goal {goal.key}: apple {index} {word}: {words}',
+                         goal=goal.key, kind='harvest', state=state, apple=index, apple_state=word, **stamp, **values)
+
+    def _harvest_ended(self, goal, outcome, ending):
+        run = self.harvests.pop(goal.key, None)
+        if run is None or run.start is None:
+            return {}
+        now = self.schedule_now()
+        finished = outcome == Outcome.SUCCEEDED
+        if finished:
+            for k, apple in run.newly_picked(math.inf):
+                self._apple(goal, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})', picked=k,
+                            started=apple.start, at=apple.end)
+        else:
+            apple = run.in_hand(now)
+            if apple is not None:
+                self._apple(goal, apple.index, 'failed', f'the harvest {outcome.word} during its cycle: '
+                                                         f'{ending.message}', started=apple.start)
+        values = run.summary(now, finished)
+        return dict(values, summary=run.words(now, finished))
+
+
+#: rad: a controller's desired position this close to the plan's is on the plan.
+ON_PLAN = 1e-4
+
+
+def _on_plan(flight, elapsed, desired):
+    """True when the controller's desired positions (``{joint: rad}``) are the plan's at ``elapsed`` s."""
+    q = flight.planned.plan.trajectory.state_at(elapsed)[0]
+    cols = [(k, desired[name]) for k, name in enumerate(flight.names) if name in desired]
+    return bool(cols) and all(abs(q[k] - value) <= ON_PLAN for k, value in cols)
+
+
+class _Rest:
+    """The part of a trajectory from ``t0`` (s) on, as its own trajectory (time 0 at ``t0``)."""
+
+    def __init__(self, trajectory, t0):
+        self.trajectory, self.t0 = trajectory, t0
+        self.duration = max(0.0, trajectory.duration - t0)
+
+    def sample(self, t):
+        return self.trajectory.sample(np.asarray(t, float) + self.t0)
+
+
+__all__ = ['GoalRunner', 'Port', 'State']

@@ -1,0 +1,91 @@
+"""A goal's life once its plan is sent, without ROS: the controller's answers mapped to outcomes, the phases and
+time left by the controller's word, and the bounds on a controller that does not answer."""
+
+from types import SimpleNamespace
+
+import pytest
+
+from picking_core.goals.lifecycle import (INVALID_GOAL, INVALID_JOINTS, OLD_HEADER_TIMESTAMP, RESPONSE_LIMIT,
+                                          RESULT_MARGIN, Flight, Lifecycle, Outcome, State)
+from picking_core.planning import Segment
+
+
+def flight(key, sent=0.0, start=10.0, duration=2.0):
+    plan = SimpleNamespace(duration=duration, segments=[Segment('P1 approach', 'optimal', 0.0, 1.0),
+                                                        Segment('grasp', 'dwell', 1.0, 1.0)])
+    return Flight(SimpleNamespace(key=key), SimpleNamespace(plan=plan), start, ('a',), sent)
+
+
+def test_a_goal_goes_accepted_executing_then_ends_with_the_controllers_result():
+    life = Lifecycle()
+    f = life.sent(flight('g'))
+    assert life.unanswered()
+    assert life.response(f, True) is None and f.state == State.ACCEPTED and not life.unanswered()
+    assert life.feedback(f, 0.2, 0.001) and not life.feedback(f, 0.3, 0.001)
+    assert f.phase() == ('P1 approach', pytest.approx(1.7))
+    assert life.result(f, 'succeeded', 0, '').outcome == Outcome.SUCCEEDED and 'g' not in life.flights
+
+
+@pytest.mark.parametrize('status, code, executing, outcome', [
+    ('canceled', 0, True, Outcome.CANCELED),
+    ('aborted', -4, True, Outcome.ABORTED),
+    ('aborted', INVALID_GOAL, False, Outcome.REFUSED),
+    ('aborted', INVALID_JOINTS, False, Outcome.REFUSED),
+    ('aborted', INVALID_GOAL, True, Outcome.ABORTED),
+])
+def test_the_controllers_verdicts_map_to_outcomes(status, code, executing, outcome):
+    life = Lifecycle()
+    f = life.sent(flight('g'))
+    life.response(f, True)
+    if executing:
+        life.feedback(f, 0.1, 0.0)
+    assert life.result(f, status, code, 'why').outcome == outcome
+
+
+def test_a_plan_refused_as_late_is_to_be_planned_again_and_one_a_newer_plan_of_ours_replaced_is_superseded():
+    life = Lifecycle()
+    f = life.sent(flight('g'))
+    life.response(f, True)
+    assert life.result(f, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.1 s in the past').late
+    old = life.sent(flight('a'))
+    life.response(old, True)
+    life.sent(flight('b', sent=1.0))
+    assert life.result(old, 'aborted', INVALID_GOAL, 'preempted').outcome == Outcome.SUPERSEDED
+
+
+def test_time_left_stands_still_while_the_controller_is_silent_on_where_the_plan_is():
+    """A stall of the controller delays the plan: its feedback's time in the plan stands still, and so does the
+    time left; a feedback that cannot say where the plan is (braking) leaves the last word standing."""
+    life = Lifecycle()
+    f = life.sent(flight('g'))
+    life.response(f, True)
+    lefts = []
+    for elapsed in (0.1, 0.5, 0.5, 0.5, None, 0.9):
+        life.feedback(f, elapsed, 0.0)
+        lefts.append(f.phase()[1])
+    assert lefts == sorted(lefts, reverse=True) and lefts[1:5] == [pytest.approx(1.5)] * 4
+
+
+def test_an_unanswered_plan_ends_aborted_and_one_without_a_result_superseded_when_a_newer_one_was_accepted():
+    life = Lifecycle()
+    silent = life.sent(flight('s', sent=0.0, start=1.0))
+    assert life.overdue(RESPONSE_LIMIT - 0.1, 5.0) == []
+    (gone, ending), = life.overdue(RESPONSE_LIMIT + 0.1, 5.0)
+    assert gone is silent and ending.outcome == Outcome.ABORTED and 'did not answer' in ending.message
+    first = life.sent(flight('a', sent=20.0, start=21.0, duration=1.0))
+    life.response(first, True)
+    newer = life.sent(flight('b', sent=21.0, start=22.0, duration=1.0))
+    life.response(newer, True)
+    ended = dict((f.goal.key, e) for f, e in life.overdue(30.0, 22.0 + RESULT_MARGIN + 0.1))
+    assert ended['a'].outcome == Outcome.SUPERSEDED and 'no result' in ended['a'].message
+    assert 'b' not in ended
+
+
+def test_a_goal_planned_again_answers_through_its_newest_plan_only():
+    life = Lifecycle()
+    old = life.sent(flight('g'))
+    life.response(old, True)
+    new = life.sent(flight('g', sent=1.0))
+    assert life.result(old, 'aborted', INVALID_GOAL, 'preempted') is None
+    life.response(new, True)
+    assert life.result(new, 'succeeded', 0, '').outcome == Outcome.SUCCEEDED

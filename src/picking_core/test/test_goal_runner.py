@@ -1,0 +1,268 @@
+"""The planner's goal flow without ROS: where plans start, one plan in flight, the newest goal waiting,
+resends, late re-plans, re-targets, and a harvest planned again around a changed world."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from conftest import shipped_harvest
+from picking_core.collision import World
+from picking_core.collision.scene import Scene, rod
+from picking_core.goals.lifecycle import LATE_REPLANS, OLD_HEADER_TIMESTAMP
+from picking_core.goals.planning import GoalPlanner
+from picking_core.goals.requests import Goal, Kind, Target
+from picking_core.goals.runner import GoalRunner
+from picking_core.goals.start import Running, Timing, choose_start
+from picking_core.harvest import SIDEWAYS
+from picking_core.kinematics import pose_matrix
+from picking_core.pick_cycle import HOME_POSITIONS
+
+DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
+HOME = np.array(HOME_POSITIONS)
+
+
+class Port:
+    """A controller and a clock the test drives: what was sent, canceled and said."""
+
+    def __init__(self, planner):
+        self.t_wall, self.t = 0.0, 1000.0
+        self.planner = planner
+        self.sent, self.canceled, self.statuses, self.logs = [], [], [], []
+        self.why, self.ref, self.meas = None, None, (HOME.copy(), 0.09)
+
+    def wall(self):
+        return self.t_wall
+
+    def now(self):
+        return self.t
+
+    def ready(self):
+        return self.why
+
+    def reference(self):
+        return self.ref
+
+    def measured(self):
+        return self.meas
+
+    def goal_planner(self):
+        return self.planner
+
+    def send(self, flight, points, stamp):
+        self.sent.append((flight, points, stamp))
+
+    def cancel(self, flight):
+        self.canceled.append(flight)
+
+    def status(self, level, text, **values):
+        message = dict(level=level, text=text, **values)
+        self.statuses.append(message)
+        return message
+
+    def repeat(self, message):
+        self.statuses.append(message)
+
+    def log(self, level, text):
+        self.logs.append((level, text))
+
+    def states(self, key):
+        return [s['state'] for s in self.statuses if s.get('goal') == key]
+
+
+@pytest.fixture(scope='module')
+def harvest():
+    return shipped_harvest()
+
+
+@pytest.fixture
+def port(harvest):
+    cycle = harvest.cycle
+    return Port(GoalPlanner(cycle.planner, cycle.s, World(cycle.arm)))
+
+
+def pose_goal(key, xyz, came=0.0, **kw):
+    return Goal(Kind.POSE, key, Target(Kind.POSE, (pose_matrix(xyz, DOWN),)), came, **kw)
+
+
+def accept(runner, port, k=-1):
+    flight = port.sent[k][0]
+    runner.on_response(flight, True, handle=object())
+    return flight
+
+
+def test_the_first_plan_starts_from_the_measured_state_stamped_now(port):
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g1', [0.6, 0.1, 0.4]))
+    flight, points, stamp = port.sent[0]
+    assert stamp == 0.0 and flight.start is None                    # from the arm at rest: "now"
+    assert points[1][0] == pytest.approx(HOME) and np.abs(points[2][0]).max() == 0.0
+    accept(runner, port)
+    assert port.states('g1') == ['accepted']
+
+
+def test_a_goal_mid_motion_starts_on_the_accepted_plan_and_is_stamped_where_it_does():
+    """The plan the controller accepted runs as sent: a new goal starts at its state at t_s, stamped t_s,
+    so that the controller carries on from it exactly (no guess, no bridge)."""
+    from conftest import shipped_harvest as make
+    cycle = make().cycle
+    port = Port(GoalPlanner(cycle.planner, cycle.s, World(cycle.arm)))
+    runner = GoalRunner(port, Timing(lead=0.05))
+    port.ref = ((HOME, np.zeros(6), np.zeros(6)), 0.09)
+    runner.take(pose_goal('g1', [0.6, 0.1, 0.4]))
+    first = accept(runner, port)
+    assert first.start == port.sent[0][2] > port.t                  # from the reference at rest: stamped too
+    port.t += 0.5
+    runner.take(pose_goal('g2', [0.55, -0.15, 0.45]))
+    second, points, stamp = port.sent[1]
+    assert stamp > port.t and second.start == stamp
+    state = first.planned.plan.trajectory.state_at(stamp - first.start)
+    assert points[1][0] == pytest.approx(state[0]) and points[2][0] == pytest.approx(state[1])
+    assert np.abs(state[1]).max() > 0.1                              # the arm moves there
+    assert second.extra['start'] == 'plan'
+
+
+def test_from_a_moving_reference_the_plan_is_stamped_now_and_its_start_is_what_the_controller_says(port):
+    """No plan of ours runs (another client's does): the plan starts from the controller's reference, stamped 0;
+    the controller bridges to it and its feedback says where the plan runs, and later goals start on it."""
+    runner = GoalRunner(port)
+    port.ref = ((HOME, np.full(6, 0.05), np.zeros(6)), 0.09)
+    runner.take(pose_goal('g1', [0.6, 0.1, 0.4]))
+    flight, _, stamp = port.sent[0]
+    assert stamp == 0.0 and flight.extra['start'] == 'reference'
+    accept(runner, port)
+    assert not runner.running.usable
+    runner.on_feedback(flight, port.t + 0.2, 0.1, 0.0)              # 0.1 s into its points at 1000.2 s
+    assert flight.start == pytest.approx(port.t + 0.1) and runner.running.usable
+    port.t += 0.3
+    runner.take(pose_goal('g2', [0.55, -0.15, 0.45]))
+    assert port.sent[1][2] > port.t and port.sent[1][0].extra['start'] == 'plan'
+
+
+def test_one_plan_in_flight_the_newest_goal_waits_and_an_older_waiting_one_is_superseded(port):
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g1', [0.6, 0.1, 0.4]))
+    runner.take(pose_goal('g2', [0.55, 0.1, 0.45]))
+    runner.take(pose_goal('g3', [0.6, -0.1, 0.45]))
+    assert len(port.sent) == 1 and port.states('g2') == ['superseded']
+    accept(runner, port)                                             # the answer lets the newest go
+    assert len(port.sent) == 2 and port.sent[1][0].goal.key == 'g3'
+
+
+def test_a_goal_sent_again_is_answered_again_not_planned_twice(port):
+    runner = GoalRunner(port)
+    goal = pose_goal('1.5', [0.6, 0.1, 0.4])
+    runner.take(goal, content='msg')
+    accept(runner, port)
+    runner.take(pose_goal('1.5', [0.6, 0.1, 0.4]), content='msg')
+    assert len(port.sent) == 1 and [s['state'] for s in port.statuses] == ['accepted', 'accepted']
+
+
+def test_a_goal_that_waits_too_long_for_the_arm_is_refused_with_the_reason(port):
+    runner = GoalRunner(port)
+    port.why = 'no joint_states received: the planner does not know where the arm is'
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4], came=0.0))
+    port.t_wall = 4.0
+    runner.tick()
+    assert port.states('g') == []
+    port.t_wall = 5.5
+    runner.tick()
+    assert port.states('g') == ['refused'] and 'waited 5 s' in port.statuses[-1]['text']
+
+
+def test_a_plan_refused_as_late_is_planned_again_further_ahead_then_refused(port):
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    for attempt in range(LATE_REPLANS + 1):
+        flight = accept(runner, port)
+        runner.on_result(flight, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.1 s in the past')
+        assert len(port.sent) == min(attempt + 2, LATE_REPLANS + 1)
+    assert port.states('g')[-1] == 'refused' and 'too late 3 times' in port.statuses[-1]['text']
+
+
+def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planned(port):
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    first = accept(runner, port)
+    for k in range(3):                                               # a stream: the plan before is answered each time
+        assert runner.retarget(pose_matrix([0.6, 0.1 + 0.01 * (k + 1), 0.4], DOWN), 0.1 * k) is None
+        accept(runner, port)
+    assert [f.goal.key for f, _, _ in port.sent] == ['g'] * 4 and runner.retargets['spliced'] == 3
+    runner.retarget(pose_matrix([0.6, 0.2, 0.4], DOWN), 1.0)        # sent, not answered yet
+    runner.retarget(pose_matrix([0.6, 0.21, 0.4], DOWN), 1.1)       # waits ...
+    runner.retarget(pose_matrix([0.6, 0.22, 0.4], DOWN), 1.2)       # ... and is replaced by the newest
+    assert runner.retargets['replaced'] == 1
+    accept(runner, port)
+    newest = port.sent[-1][0]
+    assert newest.goal.target.pose[:3, 3] == pytest.approx([0.6, 0.22, 0.4]) and newest.goal.retargets == 6
+    runner.on_result(first, 'aborted', -1, 'preempted')              # an older plan's end ends nothing
+    runner.on_response(newest, True, handle=object())
+    runner.on_result(newest, 'succeeded', 0, '')
+    assert port.states('g').count('succeeded') == 1 and 'aborted' not in port.states('g')
+
+
+def test_without_a_running_goal_a_retarget_is_not_taken(port):
+    assert GoalRunner(port).retarget(np.eye(4), 0.0) == 'no pose or pick goal runs to move'
+
+
+def test_a_start_from_a_plan_that_ended_badly_comes_from_the_reference():
+    traj = shipped_harvest().cycle.planner.plan_pose((HOME, np.zeros(6), np.zeros(6)),
+                                                      pose_matrix([0.6, 0.1, 0.4], DOWN)).trajectory
+    running = Running(traj, tuple('abcdef'), 10.0, 1, 6)
+    ref = ((HOME + 0.1, np.full(6, 0.2), np.zeros(6)), 0.05)
+    assert choose_start(running, 10.5, ref, None).source == 'plan'
+    assert choose_start(Running(traj, tuple('abcdef'), 10.0, 1, 6, 'aborted'), 10.5, ref, None).source == 'reference'
+    # A plan that succeeded holds its end, unless another client moved the arm since.
+    done = Running(traj, tuple('abcdef'), 10.0, 1, 6, 'succeeded')
+    at_end = ((traj.end_state()[0], np.zeros(6), np.zeros(6)), 0.05)
+    assert choose_start(done, 20.0, at_end, None).source == 'plan'
+    assert choose_start(done, 20.0, ref, None).source == 'reference'
+    assert choose_start(None, 20.0, None, (HOME, 0.09)).source == 'measured'
+
+
+def test_a_pose_goal_whose_rest_a_new_obstacle_blocks_is_stopped(port):
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    end = port.planner.planner.arm.fk(flight.planned.plan.trajectory.end_state()[0][:6])[:3, 3]
+    port.planner.world.replace(scene=Scene((rod('post', 'branch', end - [0, 0, 0.3], end + [0, 0, 0.3], 0.03),)))
+    runner.world_changed()
+    assert port.canceled == [flight] and 'world changed' in flight.stopped
+    runner.on_result(flight, 'canceled', 0, '')
+    assert port.states('g')[-1] == 'aborted' and 'stopped' in port.statuses[-1]['text']
+
+
+def test_a_harvest_whose_later_apples_a_new_obstacle_blocks_is_planned_again_as_the_same_goal(port):
+    """A branch appears across the last apples while the first is in hand: the rest is planned again from the
+    box after the apple in hand, stamped where that apple is in the box, as the same goal; each apple counts
+    once and the old plan's end ends nothing."""
+    runner = GoalRunner(port)
+    R = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
+    apples = [np.block([[R, np.array([[0.7], [y], [0.6]])], [np.zeros((1, 3)), np.ones((1, 1))]]) for y in (0.15, 0.3, 0.45)]
+    runner.take(Goal(Kind.HARVEST, 'h', Target(Kind.HARVEST, tuple(apples)), 0.0))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    plan = flight.planned.harvest
+    last = plan.apples[-1]
+    where = apples[last.index][:3, 3] - [0.06, 0.0, 0.0]              # across its approach
+    port.planner.world.replace(scene=Scene((rod('new branch', 'branch', where - [0, 0.03, 0], where + [0, 0.03, 0],
+                                                0.008),)))
+    port.t = flight.start + 0.5 * plan.apples[0].end
+    runner.world_changed()
+    assert 'replanned' in port.states('h')
+    rest, points, stamp = port.sent[-1]
+    assert rest.goal.key == 'h' and stamp == pytest.approx(flight.start + plan.apples[0].end)
+    redone = rest.planned.harvest
+    assert sorted([a.index for a in redone.apples] + [s.index for s in redone.skipped]) == sorted(
+        a.index for a in plan.apples[1:])                            # the apples not started, each once
+    assert port.planner.world.check(redone.plan.trajectory, list(rest.planned.regions)) is None
+    accept(runner, port)
+    runner.on_result(flight, 'aborted', -1, 'preempted: a newer trajectory took over from it')
+    assert port.states('h').count('aborted') == 0
+    port.t = stamp + rest.planned.plan.duration + 1.0
+    runner.tick()
+    runner.on_result(rest, 'succeeded', 0, '')
+    picked = [s['apple'] for s in port.statuses if s.get('apple_state') == 'picked']
+    assert len(picked) == len(set(picked)) and plan.apples[0].index in picked
+    assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['planned'] == len(apples) - len(
+        rest.planned.harvest.skipped) - len(plan.skipped)
