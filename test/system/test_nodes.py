@@ -320,8 +320,8 @@ def _rss_mb(pid):
     return 0.0
 
 
-def _flood(stack, client, during=None):
-    """Send 10 000 goals at up to 1000 a second, then one last goal; check that every goal
+def _flood(stack, client, during=None, count=10_000, rate=1000.0):
+    """Send ``count`` goals at up to ``rate`` a second, then one last goal; check that every goal
     ends (superseded, or succeeded), that none is refused, that the last one wins, and that the nodes live with
     bounded memory. ``during(stop)``, if given, runs in a thread while the goals go out
     (until the event ``stop`` is set). Returns the controller's 'command limited' lines.
@@ -348,12 +348,12 @@ def _flood(stack, client, during=None):
         if thread is not None:
             thread.start()
         start = time.monotonic()
-        while len(keys) < 10_000:                                       # 1000 goals a second for 10 s
+        while len(keys) < count:
             goal = client.send_pose([0.55, 0.05, 0.45] if len(keys) % 2 else [0.6, -0.05, 0.4])
             keys.append(f'{goal.header.stamp.sec}.{goal.header.stamp.nanosec:09d}')
             if len(keys) % 100 == 0:
                 drain()
-            time.sleep(max(0.0, start + len(keys) / 1000.0 - time.monotonic()))
+            time.sleep(max(0.0, start + len(keys) / rate - time.monotonic()))
         rate = len(keys) / (time.monotonic() - start)
         stop.set()
         if thread is not None:
@@ -412,21 +412,22 @@ def test_a_flood_of_goals_answers_every_goal_and_the_last_one_wins(arm1):
     """10 000 goals at up to 1000 a second."""
     stack, client = arm1
 
-    # ... and the trajectories were one motion: no command needed more than a touch of limiting
-    # (the carried motion switches plans every few ms, each with its own jerk, and the spline
-    # through its 10 ms points overshoots a little there).
-    for line in _flood(stack, client):
-        found = re.search(r'its (velocity|acceleration) (\S+) is beyond the limit (\S+)', line)
-        assert found and abs(float(found[2])) <= 1.5 * float(found[3]), line
+    # ... and the plans were one motion, each spliced exactly where the one before was: no command limited.
+    assert _flood(stack, client) == []
+
+
+@pytest.mark.load
+def test_a_stream_of_goals_at_perception_rate_is_answered_and_the_last_one_wins(arm1):
+    """1000 goals at 100 a second, as a perception pipeline could send them: each is planned from the plan
+    running then and spliced on (or superseded while the one before is answered); none is refused or lost."""
+    stack, client = arm1
+    assert _flood(stack, client, count=1000, rate=100.0) == []
 
 
 @pytest.mark.load
 def test_a_flood_of_goals_while_the_controller_stalls_refuses_none(arm1):
-    """The same flood while the controller stops for 20-80 ms every 0.3-0.7 s (SIGSTOP, as a
-    loaded machine stops it): its reference leaves the plans sent, and each goal starts from
-    the reference predicted at its start. With the reference's acceleration held constant there,
-    the arm sped up toward its limits, and in 2 of 3 runs 60 goals of the 10 000, or the last
-    one, were refused."""
+    """The same flood while the controller stops for 20-80 ms every 0.3-0.7 s (SIGSTOP, as a loaded machine stops
+    it): its schedule runs late, and every goal still ends, none refused."""
     stack, client = arm1
     pid, rng = stack.controller.pid, np.random.default_rng(1)
 
@@ -437,6 +438,4 @@ def test_a_flood_of_goals_while_the_controller_stalls_refuses_none(arm1):
                 time.sleep(rng.uniform(0.02, 0.08))
             finally:
                 os.kill(pid, signal.SIGCONT)
-    # A controller woken late catches up on late trajectories with lead-ins that it limits
-    # as needed: here only the planner's answers count.
     _flood(stack, client, stalls)

@@ -198,6 +198,8 @@ def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planne
     runner.on_response(newest, True, handle=object())
     runner.on_result(newest, 'succeeded', 0, '')
     assert port.states('g').count('succeeded') == 1 and 'aborted' not in port.states('g')
+    end = port.statuses[-1]
+    assert [end[f'retargets_{k}'] for k in ('received', 'spliced', 'replaced', 'refused')] == [6, 5, 1, 0]
 
 
 def test_without_a_running_goal_a_retarget_is_not_taken(port):

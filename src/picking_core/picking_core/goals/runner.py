@@ -60,6 +60,7 @@ class GoalRunner:
         self.running = None              # Running: our newest plan the controller accepted
         self.harvests = {}               # goal key -> HarvestRun of the harvests sent and not ended, oldest first
         self.retargets = {'spliced': 0, 'replaced': 0}
+        self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -92,12 +93,22 @@ class GoalRunner:
         if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
                 flight.elapsed >= flight.planned.plan.extra.get('grasp_start', math.inf):
             return 'the gripper has closed on the apple: its target no longer moves'
+        self._moved(goal.key, 'received')
         self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1))
         return None
 
+    def _moved(self, key, what):
+        counts = self._moves.setdefault(key, dict.fromkeys(('received', 'spliced', 'replaced', 'refused'), 0))
+        counts[what] += 1
+        if what in ('spliced', 'replaced'):
+            self.retargets[what] += 1
+
     def count_replaced(self):
-        """A re-target that a newer one replaced before it was taken."""
-        self.retargets['replaced'] += 1
+        """A re-target that a newer one replaced before it was taken in (coalesced on its topic)."""
+        goal = self._retargetable()
+        if goal is not None:
+            self._moved(goal.key, 'received')
+            self._moved(goal.key, 'replaced')
 
     def _retargetable(self):
         waiting = self.waiting.goal
@@ -138,7 +149,8 @@ class GoalRunner:
             return
         old = self.waiting.put(goal)
         if old is not None and old.key == goal.key:
-            self.retargets['replaced'] += 1          # a newer target of the same goal: it wins
+            if old.retargets:                         # a newer target of the same goal: it wins
+                self._moved(goal.key, 'replaced')
         elif old is not None:
             self.end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
 
@@ -280,7 +292,7 @@ class GoalRunner:
             self.running = Running(flight.planned.plan.trajectory, flight.names, flight.start, flight.serial,
                                    self.port.goal_planner().planner.arm.dof)
             if flight.goal.retargets:
-                self.retargets['spliced'] += 1
+                self._moved(flight.goal.key, 'spliced')
             self._transition(flight, 'accepted', f"{flight.extra['method']}, {flight.duration:.3f} s" + ''.join(
                 f", {flight.extra[k]}" for k in ('approach', 'detours') if k in flight.extra),
                 latency_ms=(self.port.wall() - flight.goal.came) * 1e3)
@@ -358,6 +370,7 @@ class GoalRunner:
             self._stop(running, f'{goal.rest.why}, and the rest could not be planned again around it ({why})')
             return
         if goal.retargets and running is not None:
+            self._moved(goal.key, 'refused')
             self.port.log('WARN', f'{goal.kind.value} goal {goal.key}: its new target was refused ({why}); the plan '
                                   'before it runs on')
             self._transition(running, 'retarget refused', why)
@@ -373,6 +386,7 @@ class GoalRunner:
         values = self._harvest_ended(goal, outcome, ending) if goal.kind == Kind.HARVEST else {}
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
+        values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
             self._superseded += 1

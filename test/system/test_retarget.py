@@ -1,0 +1,76 @@
+"""Re-targets: a running goal's target moved at camera rate, each update planned from the running plan and spliced on
+at the controller, or replaced by a newer one; the arm ends at the last target within every limit."""
+
+import time
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PoseStamped
+
+from picking_common.status import status_values
+from picking_core.goals.intake import ZERO_KEY
+from rosstack import ARM, BURST, DOWN, Client, Stack, ensure_rclpy, make_pose, settles_at, stop_all
+
+NS = '/retarget'
+RATE = 30.0
+SECONDS = 10.0
+CENTRE = np.array([0.6, 0.05, 0.45])
+
+
+@pytest.fixture(scope='module')
+def arm(tmp_path_factory):
+    ensure_rclpy()
+    stack = Stack(NS, tmp_path_factory.mktemp('logs'))
+    client = Client(NS)
+    try:
+        client.wait_ready(60.0)
+        yield stack, client
+    finally:
+        client.close()
+        stop_all(stack.processes)
+
+
+def circle(k):
+    """The k-th target: a point going round a 5 cm circle once every 2 s."""
+    a = 2 * np.pi * k / (2 * RATE)
+    return CENTRE + 0.05 * np.array([0.0, np.cos(a), np.sin(a)])
+
+
+@pytest.mark.load
+def test_a_30_hz_stream_of_retargets_is_spliced_or_replaced_and_the_arm_ends_at_the_last(arm):
+    stack, client = arm
+    client.watch_commands()
+    retarget = client.create_publisher(PoseStamped, 'retarget', BURST)
+    client.wait_for(lambda: retarget.get_subscription_count() > 0, 10.0, 'the planner on retarget')
+    mark = client.mark()
+    goal = client.send_pose(circle(0).tolist())
+    key = f'{goal.header.stamp.sec}.{goal.header.stamp.nanosec:09d}'
+    client.planner_answer(mark)
+    sent, start = 0, time.monotonic()
+    while time.monotonic() - start < SECONDS:
+        sent += 1
+        msg = PoseStamped(pose=make_pose(circle(sent).tolist(), DOWN))
+        msg.header.frame_id = 'base_link'
+        retarget.publish(msg)
+        time.sleep(max(0.0, start + sent / RATE - time.monotonic()))
+    end = client.wait_for(lambda: [status_values(m) for _, m in client.planner_status[mark['planner']:]
+                                   if status_values(m).get('goal') == key
+                                   and status_values(m).get('state') in ('succeeded', 'aborted', 'refused')],
+                          40.0, 'the goal to end')[0]
+    assert end['state'] == 'succeeded', end
+    # Every update was taken: spliced on, or replaced by a newer one before it was planned; none refused.
+    counts = {k: int(end[f'retargets_{k}']) for k in ('received', 'spliced', 'replaced', 'refused')}
+    assert counts['received'] == sent and counts['refused'] == 0, counts
+    assert counts['spliced'] + counts['replaced'] == sent and counts['spliced'] >= sent // 3, counts
+    settles_at(client, circle(sent).tolist(), tolerance=1e-3, timeout=10.0)
+    # The reference stayed within the limits throughout, and the controller never had to limit it.
+    with client.lock:
+        commands = [m for _, m in client.commands[mark['commands']:]]
+        limited = [m.message for _, m in client.controller_status[mark['controller']:] if 'limited' in m.message]
+        taken = [m.message for _, m in client.controller_status[mark['controller']:] if 'accepted' in m.message]
+    velocity = np.abs(np.array([m.velocity[:6] for m in commands]))
+    acceleration = np.abs(np.array([m.effort[:6] for m in commands]))
+    assert (velocity <= ARM.max_velocity * (1 + 1e-6)).all() and (acceleration <= ARM.max_acceleration * (1 + 1e-6)).all()
+    assert not limited, limited[:3]
+    assert taken and all('carries on from the reference' in m for m in taken), [m for m in taken if 'carries' not in m][:3]
+    assert key != ZERO_KEY
