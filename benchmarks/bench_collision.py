@@ -8,14 +8,14 @@ import time
 
 import coal
 import numpy as np
-
 from harness import fmt_time, median
+
+from picking_bringup.shipped import shipped_harvest, shipped_orchard
 from picking_core.collision import Canopy, CollisionChecker
 from picking_core.collision.scene import frames_along, transform
 from picking_core.kinematics import Unreachable
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_core.pick_cycle import PickCycle
-from picking_bringup.shipped import shipped_harvest, shipped_orchard
 
 #: The canopy: the orchard tree's cloud, filled up to this many points with leaves on its fruiting wall.
 CLOUD_POINTS = 20_000

@@ -12,10 +12,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from harness import fmt_time, median
-from picking_core.harvest import best_order, synthetic_tree
+
 from picking_bringup.shipped import shipped_harvest
+from picking_core.harvest import best_order, synthetic_tree
 from picking_core.platform import Coordinator, Platform
 from picking_description import platform_path
 

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-
 import numpy as np
-
 from harness import fmt_time, median, p99, time_calls
+
 from picking_core.kinematics import ArmModel
 from picking_description import default_urdf
 

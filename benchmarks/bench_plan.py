@@ -10,12 +10,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
 from harness import fmt_time, median, p99, time_calls
+
+from picking_core import trajectory
 from picking_core.analysis import corner_path, pick_corners
 from picking_core.kinematics import ArmModel, pose_matrix
 from picking_core.pick_cycle import PickCycle, PickSettings
-from picking_core import trajectory
 from picking_core.planning import Planner, PlannerSettings
 from picking_description import default_urdf
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-
 from harness import fmt_time, median, p99, time_calls
+
 from picking_core import trajectory
 
 N_STEPS = 100_000

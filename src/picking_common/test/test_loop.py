@@ -102,9 +102,10 @@ class _Logger:
 def test_the_periodic_loop_serves_every_period_once_and_a_stall_in_one_tick():
     """The deadlines are absolute: after a tick that overran many periods, the next call is told
     how many periods passed (no burst of calls), and the stall is reported."""
-    from picking_common.loop import PeriodicLoop
     import threading
     import time
+
+    from picking_common.loop import PeriodicLoop
     calls, stalls, done = [], [], threading.Event()
 
     def tick(deadline, due):

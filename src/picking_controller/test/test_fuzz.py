@@ -5,7 +5,8 @@ Run long with ``make fuzz`` (10 000 examples each).
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from picking_controller.core import ControllerCore

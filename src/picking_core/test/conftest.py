@@ -2,9 +2,9 @@ import pathlib
 
 import pytest
 
-from picking_core.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)
 from picking_core import kinematics
 from picking_core.platform import load_harvest
+from picking_core.testing import pytest_configure  # noqa: F401  (hypothesis profiles, the fuzz marker)
 from picking_description import scene_path, urdf_path
 
 #: The workspace's parameter files (the shipped planner settings the pick-cycle tests plan with).

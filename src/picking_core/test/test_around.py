@@ -3,6 +3,7 @@ solution for a goal that is itself in contact, a Cartesian path refused with its
 
 import numpy as np
 import pytest
+from conftest import shipped_harvest
 from scipy.spatial.transform import Rotation
 
 from picking_core import around
@@ -11,7 +12,6 @@ from picking_core.collision import CollisionChecker, Scene
 from picking_core.collision.scene import rod
 from picking_core.harvest import synthetic_tree
 from picking_core.kinematics.capsules import ArmCapsules
-from conftest import shipped_harvest
 
 HOME = np.array([0.0, 0.2, 1.6, 0.0, -0.23, 0.0])
 START = (HOME, 0 * HOME, 0 * HOME)

@@ -5,6 +5,7 @@ import dataclasses
 import coal
 import numpy as np
 import pytest
+from conftest import shipped_harvest
 from scipy.spatial.transform import Rotation
 
 from picking_core import approaches
@@ -14,7 +15,6 @@ from picking_core.harvest import synthetic_tree
 from picking_core.kinematics import Unreachable
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_core.pick_cycle import PickCycle
-from conftest import shipped_harvest
 
 HOME = np.array([0.0, 0.2, 1.6, 0.0, -0.23, 0.0])
 
@@ -229,8 +229,9 @@ def test_the_candidates_stay_within_the_cone_and_start_with_the_requested_pose()
 
 
 def test_an_orchard_tree_is_seeded_its_apples_clear_of_its_branches_and_some_hang_behind_a_twig(cycle, caps):
-    from picking_core.kinematics.capsules import segment_distances
     from conftest import shipped_orchard
+
+    from picking_core.kinematics.capsules import segment_distances
     from picking_core.orchard import APPLE_GAP
     a, b = shipped_orchard(16, seed=3), shipped_orchard(16, seed=3)
     assert np.array_equal(a.cloud, b.cloud) and all(np.array_equal(x, y) for x, y in zip(a.apples, b.apples))

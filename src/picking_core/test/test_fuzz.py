@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import event, given, settings, strategies as st
+from hypothesis import event, given, settings
+from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from picking_core import geometry, trajectory

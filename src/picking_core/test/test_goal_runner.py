@@ -3,9 +3,9 @@ resends, late re-plans, re-targets, and a harvest planned again around a changed
 
 import numpy as np
 import pytest
+from conftest import shipped_harvest
 from scipy.spatial.transform import Rotation
 
-from conftest import shipped_harvest
 from picking_core.collision import World
 from picking_core.collision.scene import Scene, rod
 from picking_core.goals.lifecycle import LATE_REPLANS, OLD_HEADER_TIMESTAMP

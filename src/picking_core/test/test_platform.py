@@ -3,14 +3,13 @@ coordinator with planners simulated by their predicted plans."""
 
 import numpy as np
 import pytest
+from conftest import URDF, shipped_harvest
 
 from picking_core.coordination import PlatformRun
 from picking_core.harvest import synthetic_tree
 from picking_core.kinematics import ArmModel
 from picking_core.kinematics.capsules import ArmCapsules, capsule_distances, segment_distances
 from picking_core.platform import ArmSchedule, Coordinator, Platform, SharePlan
-
-from conftest import URDF, shipped_harvest
 from picking_description import platform_path
 
 

@@ -3,9 +3,9 @@ trajectory, or the refusal), another is planned, and memory stays bounded."""
 
 import numpy as np
 import pytest
+from conftest import shipped_harvest
 
 from picking_core.kinematics import Unreachable
-from conftest import shipped_harvest
 from picking_core.planning.remembered import Remembered
 
 HOME = np.array([0.0, 0.2, 1.6, 0.0, -0.23, 0.0])

@@ -4,7 +4,8 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings, strategies as st
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from picking_core import trajectory
 
@@ -445,6 +446,7 @@ def test_a_compiled_kernel_that_cannot_load_leaves_numpy_to_answer(monkeypatch):
     """Without numba: silently None. numba failing (no writable cache directory, say): None and a
     RuntimeWarning that says what did not load, why, and what answers instead."""
     import warnings
+
     from picking_core import compiled
     from picking_core.trajectory import piecewise
 
