@@ -31,11 +31,13 @@ def shipped(node, files):
 
 
 def page():
+    from picking_bringup.foxglove import PARAMS as FOXGLOVE
     from picking_common.params import markdown
     from picking_controller.parameters import PARAMS as CONTROLLER
     from picking_planner.parameters import HARVESTER
     from picking_planner.parameters import PARAMS as PLANNER
     from picking_sim.parameters import PARAMS as SIM
+    from picking_sim.parameters import STATE_PUBLISHER
     parts = ['# Parameters', '',
              'Every parameter of every node, as the node declares it (`ros2 param describe` shows the same '
              'description, range and read-only flag). *shipped* is the value in the `config/` files that '
@@ -47,7 +49,9 @@ def page():
     for node, params, files in (('picking_sim', SIM, ('sim.yaml',)),
                                 ('picking_controller', CONTROLLER, ('controller.yaml',)),
                                 ('picking_planner', PLANNER, ('planner.yaml', 'pick_cycle.yaml')),
-                                ('picking_harvester', HARVESTER, ())):
+                                ('picking_state_publisher', STATE_PUBLISHER, ()),
+                                ('picking_harvester', HARVESTER, ()),
+                                ('picking_foxglove', FOXGLOVE, ())):
         parts += [f'## {node}', '', markdown(params, shipped(node, files)), '']
     parts += ['`config/paper_methods.yaml` sets the planner\'s methods back to the paper\'s (`picking-stack --paper`).',
               '']

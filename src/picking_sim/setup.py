@@ -23,6 +23,8 @@ setup(
         'console_scripts': [
             'picking-sim = picking_sim.node:main',
             'sim = picking_sim.node:main',
+            'picking-state-publisher = picking_sim.state_publisher:main',
+            'state_publisher = picking_sim.state_publisher:main',
         ],
     },
 )

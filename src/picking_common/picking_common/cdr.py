@@ -172,6 +172,45 @@ class JointStateWriter:
         return bytes(self._buf)
 
 
+class TransformWriter:
+    """The CDR bytes of tf2_msgs/TFMessage messages whose transforms have fixed frame names.
+
+    Laid out once as :class:`JointStateWriter`: ``write(stamp_ns, translations, quaternions)`` (N, 3 and N, 4 as
+    x, y, z, w, one row per ``(parent, child)`` pair) writes only the stamps and the numbers. Each
+    TransformStamped's seven doubles start on a multiple of 8, so its numbers are one aligned row.
+    """
+
+    def __init__(self, pairs):
+        self.n = n = len(pairs)
+        w = _Writer()
+        w.u32(n)
+        stamps, rows = [], []
+        for parent, child in pairs:
+            w.align(4)
+            stamps.append(len(w.buf))
+            w.buf += _STAMP.pack(0, 0)
+            w.string(parent)
+            w.string(child)
+            w.align(8)
+            rows.append(len(w.buf))
+            w.buf += bytes(56)
+        self._buf = w.buf
+        # Views of the whole payload (4 bytes in, where CDR's alignment counts from) place every stamp and row.
+        words = (len(w.buf) - 4) // 4
+        self._sec = np.frombuffer(self._buf, dtype='<i4', count=words, offset=4)
+        self._nanosec = np.frombuffer(self._buf, dtype='<u4', count=words, offset=4)
+        self._doubles = np.frombuffer(self._buf, dtype='<f8', count=words // 2, offset=4)
+        self._stamp_at = (np.array(stamps, int) - 4) // 4
+        self._rows = (np.array(rows, int)[:, None] - 4) // 8 + np.arange(7)
+
+    def write(self, stamp_ns, translations, quaternions):
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self._sec[self._stamp_at], self._nanosec[self._stamp_at + 1] = sec, nanosec
+        self._doubles[self._rows[:, :3]] = translations
+        self._doubles[self._rows[:, 3:]] = quaternions
+        return bytes(self._buf)
+
+
 class _Stamp:
     __slots__ = ('sec', 'nanosec')
 
@@ -351,6 +390,7 @@ def check():
     from nav_msgs.msg import Path
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import JointState
+    from tf2_msgs.msg import TFMessage
     from trajectory_msgs.msg import JointTrajectory
 
     names = ['a', 'bc', 'def']
@@ -370,6 +410,8 @@ def check():
         reader = JointStateReader()
         read = [reader.read(serialize_message(state)) for _ in range(2)]     # decoded, then cached
         trajectory = read_joint_trajectory(serialize_message(msg))
+        frames = deserialize_message(TransformWriter([('base', 'a'), ('a', 'bc'), ('bc', 'def')]).write(
+            1_700_000_000_123_456_789, xyz, quat), TFMessage).transforms
     except Exception:  # noqa: BLE001 - any failure to read it back means: do not use it
         return False
     return (trajectory.header.stamp.sec == 1_700_000_000 and trajectory.header.stamp.nanosec == 123_456_789
@@ -386,6 +428,11 @@ def check():
             and all(p.header == tool.header and [p.pose.position.x, p.pose.position.y, p.pose.position.z] == list(xyz[i])
                     and [p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z, p.pose.orientation.w]
                     == list(quat[i]) for i, p in enumerate(tool.poses))
+            and [(f.header.frame_id, f.child_frame_id) for f in frames] == [('base', 'a'), ('a', 'bc'), ('bc', 'def')]
+            and all(f.header.stamp.sec == 1_700_000_000 and f.header.stamp.nanosec == 123_456_789
+                    and [f.transform.translation.x, f.transform.translation.y, f.transform.translation.z] == list(xyz[i])
+                    and [f.transform.rotation.x, f.transform.rotation.y, f.transform.rotation.z, f.transform.rotation.w]
+                    == list(quat[i]) for i, f in enumerate(frames))
             and msg.header.stamp.sec == 1_700_000_000 and msg.header.stamp.nanosec == 123_456_789
             and msg.header.frame_id == 'base_link' and list(msg.joint_names) == names
             and len(msg.points) == 3

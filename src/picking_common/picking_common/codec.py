@@ -14,9 +14,10 @@ from __future__ import annotations
 import os
 
 import numpy as np
+from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import Path
-from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message
+from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import cdr
@@ -54,8 +55,28 @@ class _MessageStateWriter:
         return msg
 
 
+class _MessageTransformWriter:
+    """TFMessages with fixed frame names, built anew (the fallback of :class:`cdr.TransformWriter`)."""
+
+    def __init__(self, pairs):
+        self.pairs = list(pairs)
+
+    def write(self, stamp_ns, translations, quaternions):
+        msg = TFMessage()
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        for (parent, child), xyz, quat in zip(self.pairs, np.asarray(translations, float),
+                                              np.asarray(quaternions, float)):
+            t = TransformStamped(child_frame_id=child)
+            t.header.frame_id, t.header.stamp.sec, t.header.stamp.nanosec = parent, sec, nanosec
+            t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = map(float, xyz)
+            r = t.transform.rotation
+            r.x, r.y, r.z, r.w = map(float, quat)
+            msg.transforms.append(t)
+        return msg
+
+
 class Codec:
-    """Builds and reads JointTrajectory, Path and JointState for publishers and subscriptions.
+    """Builds and reads JointTrajectory, Path, JointState and TFMessage for publishers and subscriptions.
 
     ``raw`` None: CDR bytes where :func:`cdr.check` finds this middleware agrees with them, unless
     the environment sets ``PICKING_CODEC=messages``; False: always the message classes (what the
@@ -105,6 +126,11 @@ class Codec:
         """An object whose ``write(stamp_ns, position, velocity, effort)`` gives a JointState
         with ``names`` to publish (its bytes, or a message refilled at every call)."""
         return cdr.JointStateWriter(names) if self.raw else _MessageStateWriter(names)
+
+    def transform_writer(self, pairs):
+        """An object whose ``write(stamp_ns, translations, quaternions)`` gives a tf2_msgs/TFMessage of the
+        ``(parent, child)`` pairs to publish (its bytes, or a message)."""
+        return cdr.TransformWriter(pairs) if self.raw else _MessageTransformWriter(pairs)
 
     def state_reader(self):
         """A reader of JointState bytes for :class:`~picking_common.topics.LatestMessage`, or None

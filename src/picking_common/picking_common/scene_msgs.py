@@ -36,9 +36,20 @@ def _pose_matrix(pose):
     return T
 
 
-def scene_from_markers(msg, frame):
-    """The :class:`Scene` of a MarkerArray (markers in ``frame``, the arm's base frame); ValueError
-    naming the marker that cannot be read."""
+def in_frame(frame):
+    """An ``in_base`` for :func:`scene_from_markers` and :func:`cloud_points` that knows no other frame than
+    ``frame`` (or none given): the identity, or ValueError naming the frame."""
+    def in_base(header):
+        if header.frame_id.lstrip('/') not in ('', frame):
+            raise ValueError(f'frame {header.frame_id!r} is not {frame!r} (no transform to it is known here)')
+        return np.eye(4)
+    return in_base
+
+
+def scene_from_markers(msg, in_base):
+    """The :class:`Scene` of a MarkerArray in the arm's base frame: ``in_base(header)`` is the 4x4 transform of a
+    marker's frame into it (ValueError naming the frames when there is none); ValueError naming the marker that
+    cannot be read."""
     obstacles = []
     for m in msg.markers:
         if m.action == Marker.DELETEALL:
@@ -47,13 +58,14 @@ def scene_from_markers(msg, frame):
         if m.action != Marker.ADD:
             continue
         where = f'marker {m.ns!r} {m.id}'
-        if m.header.frame_id.lstrip('/') not in ('', frame):
-            raise ValueError(f'{where} is in frame {m.header.frame_id!r}, not {frame!r} (no TF here)')
         kind = NAMESPACES.get(m.ns)
         if kind is None:
             raise ValueError(f'{where}: namespace must be one of {", ".join(NAMESPACES)}')
+        try:
+            T = in_base(m.header) @ _pose_matrix(m.pose)
+        except ValueError as exc:
+            raise ValueError(f'{where}: {exc}') from None
         name = m.text or f'{m.ns} {m.id}'
-        T = _pose_matrix(m.pose)
         s = np.array([m.scale.x, m.scale.y, m.scale.z])
         if kind in ('branch', 'wire'):
             if m.type != Marker.CYLINDER:
@@ -69,11 +81,11 @@ def scene_from_markers(msg, frame):
     return Scene().merged(obstacles, 'the scene topic')
 
 
-def take_scene(msg, frame, logger):
-    """The :class:`Scene` of a ``scene`` message for a node in ``frame``, or None after logging why it
-    was refused (the node keeps its old scene)."""
+def take_scene(msg, in_base, logger):
+    """The :class:`Scene` of a ``scene`` message (``in_base`` as for :func:`scene_from_markers`), or None after
+    logging why it was refused (the node keeps its old scene)."""
     try:
-        return scene_from_markers(msg, frame)
+        return scene_from_markers(msg, in_base)
     except ValueError as exc:
         logger.error(f'scene refused, the old one kept: {exc}')
         return None
@@ -106,10 +118,10 @@ def scene_markers(scene, frame, stamp=None):
     return out
 
 
-def cloud_points(msg, frame):
-    """The (N, 3) points of a PointCloud2 with float32 x, y, z in ``frame``; ValueError otherwise."""
-    if msg.header.frame_id.lstrip('/') not in ('', frame):
-        raise ValueError(f'canopy_points is in frame {msg.header.frame_id!r}, not {frame!r} (no TF here)')
+def cloud_points(msg, in_base):
+    """The (N, 3) points of a PointCloud2 with float32 x, y, z, in the arm's base frame (``in_base(header)``: the
+    4x4 transform of the cloud's frame into it); ValueError otherwise (finite points only are kept)."""
+    T = in_base(msg.header)
     fields = {f.name: f for f in msg.fields}
     if not all(k in fields and fields[k].datatype == PointField.FLOAT32 for k in 'xyz'):
         raise ValueError('canopy_points needs float32 fields x, y and z')
@@ -122,7 +134,9 @@ def cloud_points(msg, frame):
     else:
         data = bytes(msg.data)[:n * msg.point_step]
     points = np.frombuffer(data, dtype, count=n)
-    return np.stack([points['x'], points['y'], points['z']], axis=1).astype(float)
+    xyz = np.stack([points['x'], points['y'], points['z']], axis=1).astype(float)
+    xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
+    return xyz @ T[:3, :3].T + T[:3, 3]
 
 
 def cloud_message(points, frame, stamp=None):

@@ -154,3 +154,19 @@ def test_a_trajectory_the_reader_cannot_read_at_once_is_refused(damage):
         data = data[:40] + b'\xff\xff\xff\x0f' + data[44:]            # the number of points
     with pytest.raises(ValueError):
         cdr.read_joint_trajectory(data)
+
+
+@pytest.mark.parametrize('frames', [0, 1, 2, 8])
+@pytest.mark.parametrize('prefix', ['', 'a/', 'arm2/', 'wörld/', 'p' * 7])
+def test_transforms_in_cdr_bytes_read_back_as_the_message_the_classes_build(frames, prefix):
+    from rclpy.serialization import deserialize_message
+    from tf2_msgs.msg import TFMessage
+
+    from picking_common.codec import Codec
+    rng = np.random.default_rng(frames)
+    # Names of every length mod 8: each transform's numbers start at either alignment.
+    pairs = [(prefix + 'l' * i, prefix + 'c' * (2 * i + 1)) for i in range(frames)]
+    fast, classes = cdr.TransformWriter(pairs), Codec(raw=False).transform_writer(pairs)
+    for stamp_ns in (1_700_000_000_999_999_999, 42):                # the template is rewritten each time
+        xyz, quat = rng.normal(size=(frames, 3)), rng.normal(size=(frames, 4))
+        assert deserialize_message(fast.write(stamp_ns, xyz, quat), TFMessage) == classes.write(stamp_ns, xyz, quat)

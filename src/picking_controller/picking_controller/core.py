@@ -153,7 +153,9 @@ class ControllerCore:
     def _take_over(self, t):
         """Entries that have reached their start take over; the goals they take over from end as preempted."""
         for entry in self.schedule.advance(t):
-            self._preempt(entry, self.schedule.active.goal, 'a newer trajectory took over from it')
+            by = self.schedule.active.goal
+            self._preempt(entry, by, 'a newer trajectory took over from it'
+                          + (f' (goal {by})' if by is not None else ' (from the joint_trajectory topic)'))
         active = self.schedule.active
         if active is self._active:
             return
@@ -166,8 +168,7 @@ class ControllerCore:
     def _preempt(self, entry, by, why):
         if entry.goal is not None and entry.goal != by:
             self._pending.append(Event('WARN', f'goal preempted: {why}', goal=entry.goal, outcome=Outcome(
-                'aborted', ErrorCode.INVALID_GOAL, f'preempted: {why}'
-                + (f' (goal {by})' if by is not None else ' (from the joint_trajectory topic)'))))
+                'aborted', ErrorCode.INVALID_GOAL, f'preempted: {why}')))
 
     # -- new trajectories ------------------------------------------------------------------
     def prepare(self, joint_names, times, positions, velocities, accelerations, start, now, splice_delay=0.0,

@@ -45,6 +45,9 @@ from picking_description import default_urdf
 from .core import ControllerCore, ErrorCode, Event, Mode, Outcome, Tolerances
 from .parameters import PARAMS, RUNTIME
 
+#: s an ended goal's result is kept for its client.
+RESULT_TIMEOUT = 5
+
 
 def _tolerances(p):
     return Tolerances(path=p['path_tolerance'], goal=p['goal_tolerance'], goal_time=p['goal_time_tolerance'],
@@ -98,9 +101,11 @@ class ControllerNode(Node):
         self._goals = {}
         self._ended = collections.deque()
         self._settle = self.create_guard_condition(self._settle_goals)
+        # Ended goals' results are kept RESULT_TIMEOUT s for their clients (rclpy's default, 15 min, lets the status
+        # array every client reads grow with each goal of a stream of re-targets).
         self.action = ActionServer(self, FollowJointTrajectory, 'follow_joint_trajectory',
                                    execute_callback=self._execute, goal_callback=lambda _: GoalResponse.ACCEPT,
-                                   cancel_callback=self._cancel)
+                                   cancel_callback=self._cancel, result_timeout=RESULT_TIMEOUT)
         monitor_rate = p['action_monitor_rate']
         # Runs only while an action goal does: an idle controller's executor stays asleep.
         self._feedback_timer = self.create_timer(1.0 / monitor_rate, self._publish_feedback)
@@ -199,6 +204,8 @@ class ControllerNode(Node):
             with self.lock:
                 event = self.core.load(*args, self.now(), goal=goal, tolerances=tolerances)
         event.values.setdefault('trajectory', trajectory)
+        if event.level == 'OK':                  # when it went on the schedule, on the ROS clock (s, as text)
+            event.values['spliced_at'] = f'{self.now():.6f}'
         self._report([event])
 
     # -- the follow_joint_trajectory action ---------------------------------------------

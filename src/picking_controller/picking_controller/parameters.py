@@ -10,7 +10,7 @@ PARAMS = (
     Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
     Param('update_rate', 1000.0, 'rate of the control loop and of joint_commands', 'Hz', (1.0, 10000.0),
           read_only=True),
-    Param('thread_priority', 0, 'SCHED_FIFO priority of the control loop thread, as ros2_control (needs '
+    Param('thread_priority', 50, 'SCHED_FIFO priority of the control loop thread, as ros2_control (needs '
           'CAP_SYS_NICE or ulimit -r, else a warning); 0: normal scheduling', '', (0, 99), read_only=True),
     Param('executor_priority', 0, 'SCHED_FIFO priority of the thread that takes trajectories, below '
           'thread_priority (several arms on one machine); 0: normal scheduling', '', (0, 98), read_only=True),

@@ -15,8 +15,8 @@ from picking_controller.core import ControllerCore, Tolerances
 from picking_core.kinematics import ArmModel, pose_matrix
 from picking_core.pick_cycle import PickCycle, PickSettings
 from picking_core.planning import PATH_METHODS, POSE_METHODS, Planner, PlannerSettings
-from picking_description import default_urdf
 from picking_core.trajectory import concatenate, waypoints
+from picking_description import default_urdf
 
 BOUND = (1e-9, 1e-7, 1e-4)
 ARM = ArmModel.from_urdf(default_urdf())

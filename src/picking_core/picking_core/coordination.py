@@ -41,6 +41,11 @@ PLANNING = 0.3
 FINAL = ('succeeded', 'refused', 'aborted', 'superseded', 'canceled')
 
 
+def plural(n, word):
+    """``n`` and ``word``, in the plural unless n is 1 ("1 part", "3 parts")."""
+    return f'{n} {word}' + ('' if n == 1 else 's')
+
+
 class Released:
     """An arm's motion as its planner released it: trajectories, each from its start on (a later one
     takes over at its start), the arm resting at the last point after the end."""
@@ -170,7 +175,7 @@ class PlatformRun:
             # Sent so as to start at its time, as long ahead as this arm's planner took the last time.
             arm.start = ready + lead + a.start
             arm.sent_at = arm.start - arm.lead
-            given.append(f'{arm.namespace} {len(a.plan.apples)} apples in {len(a.plan.chunks)} parts'
+            given.append(f'{arm.namespace} {plural(len(a.plan.apples), "apple")} in {plural(len(a.plan.chunks), "part")}'
                          + (f' (starts {a.start:.1f} s after the first)' if a.start > 0 else ''))
         self.events.append(('OK', f'round {self.rounds}: ' + (', '.join(given) or 'no apple can be given')
                             + (f'; {len(schedule.postponed)} postponed' if schedule.postponed else '')
@@ -292,7 +297,7 @@ class PlatformRun:
         if i in self.open:
             self.open.remove(i)
             a.picked.append(i)
-            self.events.append(('OK', f'{a.namespace}: apple {i} in the box ({self.picked()} of {len(self.tree)})'))
+            self.events.append(('OK', f'{a.namespace}: apple {i} delivered ({self.picked()} of {len(self.tree)})'))
 
     def _retry(self, i, reason):
         if self.tries[i] >= ATTEMPTS:

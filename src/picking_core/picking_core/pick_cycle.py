@@ -461,7 +461,7 @@ class PickCycle:
         at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest).
 
         With a blend radius the lift ends that far before its end (along the line or the arc)."""
-        pl, s, r = self.planner, self.s, self.s.blend_radius
+        pl, r = self.planner, self.s.blend_radius
         T2, mid, end = self._lift_poses(q_apple, poses)
         if mid is None:
             return pl.line(q_apple, T2, end if r == 0.0 else _toward(end, T2, r), (0.0, speed), rest)

@@ -5,8 +5,17 @@ from types import SimpleNamespace
 
 import pytest
 
-from picking_core.goals.lifecycle import (INVALID_GOAL, INVALID_JOINTS, OLD_HEADER_TIMESTAMP, RESPONSE_LIMIT,
-                                          RESULT_MARGIN, Flight, Lifecycle, Outcome, State)
+from picking_core.goals.lifecycle import (
+    INVALID_GOAL,
+    INVALID_JOINTS,
+    OLD_HEADER_TIMESTAMP,
+    RESPONSE_LIMIT,
+    RESULT_MARGIN,
+    Flight,
+    Lifecycle,
+    Outcome,
+    State,
+)
 from picking_core.planning import Segment
 
 
@@ -26,20 +35,32 @@ def test_a_goal_goes_accepted_executing_then_ends_with_the_controllers_result():
     assert life.result(f, 'succeeded', 0, '').outcome == Outcome.SUCCEEDED and 'g' not in life.flights
 
 
-@pytest.mark.parametrize('status, code, executing, outcome', [
-    ('canceled', 0, True, Outcome.CANCELED),
-    ('aborted', -4, True, Outcome.ABORTED),
-    ('aborted', INVALID_GOAL, False, Outcome.REFUSED),
-    ('aborted', INVALID_JOINTS, False, Outcome.REFUSED),
-    ('aborted', INVALID_GOAL, True, Outcome.ABORTED),
+def test_a_joint_move_names_its_method_as_its_phase():
+    f = flight('g')
+    f.planned.plan.segments = [Segment('move', 'lspb', 0.0, 2.0)]
+    life = Lifecycle()
+    life.sent(f)
+    life.response(f, True)
+    life.feedback(f, 0.5, 0.001)
+    assert f.phase() == ('move (lspb)', pytest.approx(1.5))
+
+
+@pytest.mark.parametrize('status, code, executing, why, outcome', [
+    ('canceled', 0, True, 'why', Outcome.CANCELED),
+    ('aborted', -4, True, 'why', Outcome.ABORTED),
+    ('aborted', INVALID_GOAL, False, 'why', Outcome.REFUSED),
+    ('aborted', INVALID_JOINTS, False, 'why', Outcome.REFUSED),
+    ('aborted', INVALID_GOAL, True, 'why', Outcome.ABORTED),
+    # Taken, then dropped before it ran: not refused for being wrong.
+    ('aborted', INVALID_GOAL, False, 'preempted: the goal it was spliced onto was canceled', Outcome.ABORTED),
 ])
-def test_the_controllers_verdicts_map_to_outcomes(status, code, executing, outcome):
+def test_the_controllers_verdicts_map_to_outcomes(status, code, executing, why, outcome):
     life = Lifecycle()
     f = life.sent(flight('g'))
     life.response(f, True)
     if executing:
         life.feedback(f, 0.1, 0.0)
-    assert life.result(f, status, code, 'why').outcome == outcome
+    assert life.result(f, status, code, why).outcome == outcome
 
 
 def test_a_plan_refused_as_late_is_to_be_planned_again_and_one_a_newer_plan_of_ours_replaced_is_superseded():

@@ -30,17 +30,21 @@ from trajectory_msgs.msg import JointTrajectory
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.params import declare, usage
+from picking_common.poses import msg_pose
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status, status_values
+from picking_common.tf import FrameError, FrameListener, stamp_seconds
 from picking_common.topics import BURST, RELIABLE, LatestMessage
-
 from picking_core.coordination import PlatformRun
-from picking_common.poses import msg_pose
-from .parameters import HARVESTER as PARAMS, PARAMS as PLANNER_PARAMS
 from picking_core.kinematics import ArmModel
 from picking_core.platform import SAMPLE, Coordinator, Platform, harvest_from_parameters
 from picking_description import default_urdf, platform_path
 
+from .parameters import HARVESTER as PARAMS
+from .parameters import PARAMS as PLANNER_PARAMS
+
+#: s a tree in another frame waits for its transform into the platform frame.
+TRANSFORM_TIMEOUT = 0.5
 
 
 class HarvesterNode(Node):
@@ -60,6 +64,7 @@ class HarvesterNode(Node):
                                                      clearance=values['clearance'],
                                                      slack=values['slack'], sample=SAMPLE)
         self.codec = Codec()
+        self.frames = FrameListener(self)
         self.run, self.key = None, None
         self.pub_status = self.create_publisher(DiagnosticStatus, 'harvester_status', BURST)
         self.sub_tree = self.create_subscription(PoseArray, 'tree_targets', self._on_tree, BURST)
@@ -95,6 +100,16 @@ class HarvesterNode(Node):
             self.get_logger().warning(words)
 
     # -- the tree ---------------------------------------------------------------------------------
+    def _in_platform(self, header):
+        """The transform of a tree's frame into the platform frame, through /tf; ValueError naming the frames."""
+        frame = header.frame_id.lstrip('/')
+        if frame in ('', self.platform.frame):
+            return np.eye(4)
+        try:
+            return self.frames.transform(self.platform.frame, frame, stamp_seconds(header.stamp), TRANSFORM_TIMEOUT)
+        except FrameError as exc:
+            raise ValueError(f'the tree in frame {frame!r}: {exc}') from None
+
     def _on_tree(self, msg):
         key = stamp_key(msg.header.stamp)
         if self.run is not None and key == self.key:
@@ -103,12 +118,9 @@ class HarvesterNode(Node):
             self._say(Level.WARN, f'tree {key} refused: a tree is being harvested (stop its arms first)', goal=key,
                       state='refused')
             return
-        if msg.header.frame_id not in ('', self.platform.frame):
-            self._say(Level.WARN, f'tree {key} refused: its apples must be in the {self.platform.frame!r} frame, '
-                                  f'not {msg.header.frame_id!r}', goal=key, state='refused')
-            return
         try:
-            apples = [msg_pose(p) for p in msg.poses]
+            T = self._in_platform(msg.header)
+            apples = [T @ msg_pose(p) for p in msg.poses]
             if not apples:
                 raise ValueError('the tree has no apples (an empty PoseArray)')
         except ValueError as exc:

@@ -25,6 +25,8 @@ from picking_core.goals.lifecycle import Ending, Outcome
 from picking_core.goals.requests import Goal, Kind, Target
 
 RESULTS = {Kind.POSE: MoveToPose, Kind.PATH: FollowPath, Kind.PICK: Pick}
+#: s an ended goal's result is kept for its client (rclpy's default, 15 min, lets every client's status array grow).
+RESULT_TIMEOUT = 30
 
 
 def goal_id(header):
@@ -34,11 +36,11 @@ def goal_id(header):
 
 
 class GoalInputs:
-    """The goal topics and actions of ``node``, handed to its goal flow ``runner``; ``frame_check(header)``
-    raises ValueError for a frame the planner cannot take."""
+    """The goal topics and actions of ``node``, handed to its goal flow ``runner``; ``in_base(header)`` is the 4x4
+    transform of a message's frame into the arm's base (ValueError naming the frames when there is none)."""
 
-    def __init__(self, node, runner, frame_check):
-        self.node, self.runner, self.frame_check = node, runner, frame_check
+    def __init__(self, node, runner, in_base):
+        self.node, self.runner, self.in_base = node, runner, in_base
         self.subs = {kind: node.create_subscription(msg_type, topic, partial(self._on_topic, kind), BURST)
                      for kind, msg_type, topic in ((Kind.POSE, PoseStamped, 'goal_pose'),
                                                    (Kind.PATH, PoseArray, 'goal_path'),
@@ -50,10 +52,12 @@ class GoalInputs:
                         for kind, name in ((Kind.POSE, 'move_to_pose'), (Kind.PATH, 'follow_path'), (Kind.PICK, 'pick'))]
 
     def target(self, kind, msg, method=''):
-        """The :class:`Target` of a goal message (PoseStamped or PoseArray); ValueError naming what is wrong."""
-        self.frame_check(msg.header)
+        """The :class:`Target` of a goal message (PoseStamped or PoseArray) in the arm's base frame; ValueError naming
+        what is wrong."""
         poses = (msg.pose,) if kind in (Kind.POSE, Kind.PICK) else tuple(msg.poses)
-        return Target(kind, tuple(msg_pose(p) for p in poses), method)
+        poses = tuple(msg_pose(p) for p in poses)
+        T = self.in_base(msg.header)
+        return Target(kind, tuple(T @ pose for pose in poses), method)
 
     # -- topics ------------------------------------------------------------------------------------
     def _on_topic(self, kind, msg):
@@ -79,12 +83,11 @@ class GoalInputs:
     def _on_retarget(self, msg):
         msg = newest_waiting(self.sub_retarget, msg, lambda _: self.runner.count_replaced())
         try:
-            self.frame_check(msg.header)
-            pose = msg_pose(msg.pose)
+            pose = self.in_base(msg.header) @ msg_pose(msg.pose)
         except ValueError as exc:
             self.node.get_logger().error(f'retarget refused: {exc}', throttle_duration_sec=1.0)
             return
-        why = self.runner.retarget(pose, self.runner.port.wall())
+        why = self.runner.retarget(pose, self.runner.port.wall(), stamp_key(msg.header.stamp))
         if why is not None:
             self.node.get_logger().warning(f'retarget not taken: {why}', throttle_duration_sec=1.0)
 

@@ -105,12 +105,14 @@ class ControllerLink:
         """``flight``'s plan as a FollowJointTrajectory goal stamped ``stamp`` (schedule s; 0: now); its answers go
         to the runner."""
         stamp_ns = self._origin_ns + int(round(stamp * 1e9)) if stamp else 0
-        trajectory = self.messages.joint_trajectory(stamp_ns, '', list(flight.names), *points)
-        flight.trajectory = stamp_key(stamp_ns)
-        future = self.client.send_goal_async(FollowJointTrajectory.Goal(trajectory=trajectory),
-                                             feedback_callback=partial(self._on_feedback, flight))
+        names = list(flight.names)
+        flight.trajectory = flight.extra['trajectory'] = stamp_key(stamp_ns)
+        # (An action goal is a message; the topic takes the same trajectory as CDR bytes, far cheaper to write.)
+        future = self.client.send_goal_async(
+            FollowJointTrajectory.Goal(trajectory=self.messages.joint_trajectory(stamp_ns, '', names, *points)),
+            feedback_callback=partial(self._on_feedback, flight))
         future.add_done_callback(partial(self._on_response, flight))
-        self.pub_traj.publish(trajectory)
+        self.pub_traj.publish(self.codec.joint_trajectory(stamp_ns, '', names, *points))
         self._publish_tool_path(points[1])
 
     def cancel(self, flight):
@@ -150,6 +152,8 @@ class ControllerLink:
             logger.error(text)
         elif level == 'WARN':
             logger.warning(text)
+        elif level == 'DEBUG':
+            logger.debug(text)
         else:
             logger.info(text)
 

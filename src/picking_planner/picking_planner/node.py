@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
@@ -26,6 +27,7 @@ from picking_common.params import declare, usage
 from picking_common.run import run_node
 from picking_common.scene_msgs import cloud_points, take_scene
 from picking_common.status import Diagnostics, Level
+from picking_common.tf import FrameError, FrameListener, stamp_seconds
 from picking_common.topics import LATCHED, NEWEST
 from picking_core.collision import Scene, World
 from picking_core.goals.planning import GoalPlanner
@@ -60,10 +62,13 @@ class PlannerNode(Node):
         self.world = World(self.arm, self._scene_file(p['scene_file']), p['collision_clearance'],
                            p['avoid_collisions'])
         self.add_on_set_parameters_callback(self._on_parameters)
+        # Goals, paths, clouds and scenes come in any frame /tf knows; the arm's base is this one there.
+        self.base_tf = self.get_parameter('frame_prefix').value + self.arm.base_frame
+        self.frames = FrameListener(self)
         self.link = ControllerLink(self)
         self.runner = GoalRunner(self.link, Timing(self.get_parameter('start_delay').value))
         self.link.runner = self.runner
-        self.inputs = GoalInputs(self, self.runner, self._check_frame)
+        self.inputs = GoalInputs(self, self.runner, self.in_base)
         self.create_timer(0.1, self.runner.tick)
         # The world: a scene replaced whole by a latched MarkerArray, and the canopy by each cloud, built into its
         # octree on a thread of its own (a camera's clouds never wait for a plan, nor a plan for them).
@@ -82,21 +87,27 @@ class PlannerNode(Node):
         """The goal planner of the moment (parameters may have changed the planner or the pick settings)."""
         return GoalPlanner(self.planner, self.pick, self.world)
 
-    def _check_frame(self, header):
+    def in_base(self, header, what='goal'):
+        """The 4x4 transform from a message's frame to the arm's base (its stamp's, 0: the latest), waiting up to
+        ``transform_timeout`` s for it; ValueError naming the frames and why when there is none."""
         frame = header.frame_id.lstrip('/')
-        if frame not in ('', self.arm.base_frame):
-            raise ValueError(f'goal frame {header.frame_id!r} is not the base frame {self.arm.base_frame!r} '
-                             '(no TF here: give poses in the base frame, or leave frame_id empty)')
+        if frame in ('', self.arm.base_frame, self.base_tf):
+            return np.eye(4)
+        try:
+            return self.frames.transform(self.base_tf, frame, stamp_seconds(header.stamp),
+                                         self.get_parameter('transform_timeout').value)
+        except FrameError as exc:
+            raise ValueError(f'{what} in frame {frame!r}: {exc}') from None
 
     def _scene_file(self, path):
         scene = Scene.from_yaml(path or scene_path('workcell'))
         if scene.frame != self.arm.base_frame:
             raise ValueError(f'scene_file {path!r} is in frame {scene.frame!r}, not the arm\'s base frame '
-                             f'{self.arm.base_frame!r} (no TF here)')
+                             f'{self.arm.base_frame!r} (a scene file is in the frame of the arm it is for)')
         return scene
 
     def _on_scene(self, msg):
-        scene = take_scene(msg, self.arm.base_frame, self.get_logger())
+        scene = take_scene(msg, lambda header: self.in_base(header, 'the scene marker'), self.get_logger())
         if scene is None:
             return
         self.world.replace(scene=scene)
@@ -145,6 +156,7 @@ class PlannerNode(Node):
 
     def close(self):
         self.link.close()
+        self.frames.destroy()
 
 
 class CloudBuilder:
@@ -180,7 +192,7 @@ class CloudBuilder:
         while (msg := self._next()) is not None:
             world = self.node.world
             try:
-                points = cloud_points(msg, self.node.arm.base_frame)
+                points = cloud_points(msg, lambda header: self.node.in_base(header, 'canopy_points'))
             except ValueError as exc:
                 logger.error(f'canopy_points refused, the old canopy kept: {exc}', throttle_duration_sec=5.0)
                 continue

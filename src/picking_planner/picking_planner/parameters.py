@@ -7,20 +7,19 @@ planner cannot plan with is refused with the reason).
 """
 
 from picking_common.params import Param
-
 from picking_core.collision import CLEARANCE as COLLISION_CLEARANCE
 from picking_core.pick_cycle import PickSettings
-from picking_core.platform import CLEARANCE, SLACK
 from picking_core.planning import PlannerSettings
+from picking_core.platform import CLEARANCE, SLACK
 
 #: Where the node's defaults differ from the library's (the paper's methods): the jerk-limited,
 #: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
 NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
                      approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02,
-                     box_blend_radius=0.10)
+                     box_blend_radius=0.10, speed_scale=1.0, point_period=0.1)
 
 #: The parameters of the planning core (PlannerSettings) and of the pick cycle (PickSettings).
-SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'cartesian_speed',
+SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'point_period', 'cartesian_speed',
             'cartesian_accel', 'cartesian_profile', 'max_joint_step', 'limit_jerk')
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
@@ -44,8 +43,10 @@ _TEXT = {
     'speed_scale': ('fraction of the joint velocity limits the plans use (accelerations: its square, jerks: its '
                     'cube)', '', (0.01, 1.0)),
     'duration': ('duration of a pose move; 0: the shortest within the limits', 's', (0.0, 3600.0)),
-    'sample_period': ('longest time between two trajectory points (the paper samples every 0.01 s; the points also '
-                      "fall on every break of the plan)", 's', (0.001, 1.0)),
+    'sample_period': ('spacing of the samples a plan is made and checked at: a line\'s or arc\'s IK, the shortest '
+                      'segment (the paper samples every 0.01 s)', 's', (0.001, 1.0)),
+    'point_period': ('longest time between two points of a plan as it is sent; every break of the plan is a point too, '
+                     'so the controller runs it exactly', 's', (0.001, 10.0)),
     'cartesian_speed': ('first guess of the tool speed on lines and arcs (stretched to the joint limits)', 'm/s',
                         (0.001, 10.0)),
     'cartesian_accel': ('tool acceleration on lines and arcs', 'm/s^2', (0.001, 100.0)),
@@ -85,6 +86,10 @@ _TEXT = {
 
 PARAMS = (
     Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
+    Param('frame_prefix', '', 'prefix of this arm\'s frames on /tf (an arm in a namespace: "arm1/"): its base there is '
+          '<frame_prefix><base frame>', read_only=True),
+    Param('transform_timeout', 0.2, 'how long a goal, cloud or scene in another frame waits for its transform into the '
+          'arm\'s base', 's', (0.0, 10.0)),
     Param('reference_timeout', 0.1, "plan from the controller's reference (joint_commands) while it is this fresh, "
           'else from joint_states', 's', (0.001, 10.0)),
     Param('start_delay', 0.1, 'a plan starts this long after its planning is expected to end (stamped so), so that a '

@@ -3,9 +3,10 @@
 Subscribes ``joint_commands`` (sensor_msgs/JointState: position, velocity, and
 acceleration feedforward in ``effort``), runs the servo loop at ``servo_rate``
 in a thread of its own with absolute deadlines, and publishes ``joint_states``
-at ``publish_rate`` and the URDF on ``robot_description`` (transient local),
-like a real arm driver. As a witness (picking_sim.witness), it reports every contact of the
-arm with the scene (``scene_file``, or the latched ``scene`` topic) on ``sim_contacts``.
+at ``publish_rate``, like a real arm driver (the URDF and the frames are the state publisher's).
+As a witness (picking_sim.witness), it reports every contact of the arm with the scene
+(``scene_file``, or the latched ``scene`` topic) on ``sim_contacts``, and draws that scene on
+``world_markers`` (latched, in the arm's base frame) for viewers.
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ import threading
 import time
 
 import numpy as np
-from rcl_interfaces.msg import SetParametersResult
 from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from picking_common.codec import Codec
@@ -28,18 +28,21 @@ from picking_common.joint_state import reorder, seconds
 from picking_common.loop import PeriodicLoop
 from picking_common.params import declare, usage
 from picking_common.run import run_node
+from picking_common.scene_msgs import scene_markers, take_scene
 from picking_common.status import Diagnostics, Level, status
+from picking_common.tf import FrameError, FrameListener, stamp_seconds
 from picking_common.topics import BURST, LATCHED, LatestMessage
 from picking_core.collision import CollisionChecker, Scene
 from picking_core.kinematics import ArmModel
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_description import default_urdf, scene_path
-from picking_common.scene_msgs import take_scene
 
 from .parameters import PARAMS
 from .servo import Servo, ServoParams
 from .witness import Witness
 
+#: s a scene in another frame waits for its transform into the arm's base.
+TRANSFORM_TIMEOUT = 0.2
 #: Servo steps run at each wake of the loop thread.
 STEPS_PER_WAKE = 2
 #: Hz of the witness's look at the samples published since its last.
@@ -92,8 +95,6 @@ class SimNode(Node):
         self.lock = threading.Lock()
 
         self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
-        self.pub_description = self.create_publisher(String, 'robot_description', LATCHED)
-        self.pub_description.publish(String(data=self.arm.urdf))
         # The servo thread takes the newest command itself: no 1 kHz executor callbacks.
         codec = Codec()
         self.commands = LatestMessage(self, JointState, 'joint_commands', reader=codec.state_reader())
@@ -117,6 +118,11 @@ class SimNode(Node):
                                                 self_check=False))
         self._watched = collections.deque(maxlen=int(10 * p['publish_rate']))
         self.pub_contacts = self.create_publisher(DiagnosticStatus, 'sim_contacts', BURST)
+        self.base_tf = p['frame_prefix'] + self.arm.base_frame
+        self.frames = FrameListener(self)
+        # The world the witness checks against, drawn for viewers (RViz, Foxglove) in the arm's base.
+        self.pub_world = self.create_publisher(MarkerArray, 'world_markers', LATCHED)
+        self.pub_world.publish(scene_markers(scene, self.base_tf))
         self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
         self.create_timer(1.0 / WITNESS_RATE, self._watch)
         self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
@@ -205,11 +211,22 @@ class SimNode(Node):
         self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd, self.servo.torque))
         self._watched.append((t_state, self.servo.q[:self.arm.dof].copy()))
 
+    def _in_base(self, header):
+        """The transform of a scene marker's frame into the arm's base, from /tf (ValueError when there is none)."""
+        frame = header.frame_id.lstrip('/')
+        if frame in ('', self.arm.base_frame, self.base_tf):
+            return np.eye(4)
+        try:
+            return self.frames.transform(self.base_tf, frame, stamp_seconds(header.stamp), TRANSFORM_TIMEOUT)
+        except FrameError as exc:
+            raise ValueError(str(exc)) from None
+
     def _on_scene(self, msg):
-        scene = take_scene(msg, self.arm.base_frame, self.get_logger())
+        scene = take_scene(msg, self._in_base, self.get_logger())
         if scene is None:
             return
         self.witness.checker = self.witness.checker.replaced(scene=scene)
+        self.pub_world.publish(scene_markers(scene, self.base_tf))
         self.get_logger().info(f'watching the arm against {len(scene)} obstacles from the scene topic')
 
     def _watch(self):
@@ -249,6 +266,7 @@ class SimNode(Node):
     def close(self):
         self.loop.stop()
         self.commands.destroy()
+        self.frames.destroy()
 
 
 def main(args=None):

@@ -8,6 +8,8 @@ HOME = [*HOME_POSITIONS, GRIPPER_OPEN]
 
 PARAMS = (
     Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
+    Param('frame_prefix', '', 'prefix of this arm\'s frames on /tf (an arm in a namespace: "arm1/"): a scene in another '
+          'frame is placed through /tf', read_only=True),
     Param('publish_rate', 100.0, 'rate of joint_states', 'Hz', (1.0, 10000.0), read_only=True),
     Param('servo_rate', 1000.0, 'rate of the position loop of Fig. 1 (at least publish_rate)', 'Hz',
           (10.0, 100000.0), read_only=True),
@@ -15,7 +17,7 @@ PARAMS = (
           (0.0, 1.0)),
     Param('command_timeout', 0.05, 'time without joint_commands after which the reference stops moving', 's',
           (0.001, 10.0), read_only=True),
-    Param('thread_priority', 0, 'SCHED_FIFO priority of the servo thread (needs CAP_SYS_NICE or ulimit -r, else a '
+    Param('thread_priority', 49, 'SCHED_FIFO priority of the servo thread (needs CAP_SYS_NICE or ulimit -r, else a '
           'warning); 0: normal scheduling', '', (0, 99), read_only=True),
     Param('loop_phase', -1.0, "-1: the servo's steps count from its start; 0 to < 1: at this fraction of a period past "
           'whole periods of the monotonic clock (several arms on one machine)', '', (-1.0, 1.0), read_only=True),
@@ -34,4 +36,19 @@ PARAMS = (
           '1x)', '', (1.0, 10.0), read_only=True),
     Param('scene_file', '', 'the obstacles the simulator watches the arm against, as the planner\'s scene_file (empty: '
           'the shipped picking_description/scenes/workcell_scene.yaml); the scene topic replaces it', read_only=True),
+)
+
+#: picking-state-publisher's parameters (state_publisher.py).
+STATE_PUBLISHER = (
+    Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
+    Param('frame_prefix', '', 'prefix of every link frame of this arm (an arm in a namespace: "arm1/"), as '
+          "robot_state_publisher's frame_prefix", read_only=True),
+    Param('parent_frame', '', 'the frame the arm stands in (a platform): its base is published in it as a static '
+          'transform; empty: the base is a root of the tree', read_only=True),
+    Param('parent_xyz', [0.0, 0.0, 0.0], 'where the arm\'s base is in parent_frame', 'm', read_only=True),
+    Param('parent_rpy', [0.0, 0.0, 0.0], 'how the arm\'s base is turned in parent_frame: roll, pitch, yaw', 'rad',
+          read_only=True),
+    Param('update_rate', 20.0, 'how often the joint states received are turned into /tf: every one of them is '
+          'published, stamped with its state (a wake per message would cost the process far more)', 'Hz',
+          (1.0, 1000.0), read_only=True),
 )

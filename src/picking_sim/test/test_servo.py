@@ -147,7 +147,9 @@ def test_bad_commands_are_refused():
 
 def test_a_servo_woken_late_waits_briefly_for_a_command_sent_during_its_stall():
     from types import SimpleNamespace
+
     from builtin_interfaces.msg import Time
+
     from picking_sim.node import newest_since
 
     def msg(t):

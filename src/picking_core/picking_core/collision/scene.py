@@ -9,7 +9,6 @@ broad phase. The canopy is a coal octree of the cloud, with a distance field bes
 from __future__ import annotations
 
 import functools
-
 import math
 from dataclasses import dataclass
 from pathlib import Path

@@ -85,7 +85,8 @@ class Flight:
 
     def phase(self):
         """``(phase, time_left)`` by the controller's newest word on where the plan is: 'sent' or 'accepted'
-        before it runs, 'starting' before its first point, the segment it is in, 'settling' after its end. Time
+        before it runs, 'starting' before its first point, the segment it is in (a joint move with its method:
+        'move (lspb)'), 'settling' after its end. Time
         left never rises: it counts the plan's own time, which a stall of the controller delays."""
         elapsed = self.elapsed
         if self.state != State.EXECUTING or elapsed is None:
@@ -95,7 +96,7 @@ class Flight:
             return 'starting', left
         for seg in self.planned.plan.segments:
             if seg.start <= elapsed < seg.start + seg.duration:
-                return seg.label, left
+                return (f'move ({seg.method})' if seg.label == 'move' else seg.label), left
         return 'settling', left
 
 
@@ -172,7 +173,9 @@ class Lifecycle:
             return Ending(Outcome.SUPERSEDED, 'superseded: a newer goal took the arm over', code)
         if code == OLD_HEADER_TIMESTAMP:
             return Ending(None, text, code, late=True)
-        if flight.state == State.EXECUTING or code not in (INVALID_GOAL, INVALID_JOINTS):
+        # A plan preempted before it ran was taken, then dropped (the goal it was spliced onto was canceled):
+        # aborted, not refused for being wrong.
+        if flight.state == State.EXECUTING or code not in (INVALID_GOAL, INVALID_JOINTS) or text.startswith('preempted'):
             return Ending(Outcome.ABORTED, f'the controller aborted it: {text}', code)
         return Ending(Outcome.REFUSED, f'the controller refused the plan: {text}', code)
 

@@ -8,7 +8,8 @@ import numpy as np
 
 from .. import around
 from ..approaches import Blocked
-from ..collision import STEP as COLLISION_STEP, Allowed
+from ..collision import STEP as COLLISION_STEP
+from ..collision import Allowed
 from ..harvest import Harvest, HarvestPlan
 from ..pick_cycle import PickCycle
 from ..planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS, Plan
@@ -54,11 +55,12 @@ class GoalPlanner:
             planned = Planned(harvest.plan, harvest=harvest)
         regions = tuple(Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in target.apples())
         planned = Planned(planned.plan, regions, planned.harvest)
-        # Every plan is checked whole before it is sent (a pick's cycles were planned clear of the world; this
-        # also catches a pose or path goal's plan and a harvest's way home).
-        contact = self.world.check(planned.plan.trajectory, list(regions), slack=COLLISION_STEP / 2)
-        if contact is not None:
-            raise Blocked(f'the plan would hit an obstacle: {contact}')
+        if target.kind in (Kind.PICK, Kind.HARVEST):
+            # A pick's or a harvest's parts were each planned clear of the world; the whole is checked once more,
+            # its joins included (a pose or path goal's plan was checked whole by around).
+            contact = self.world.check(planned.plan.trajectory, list(regions), slack=COLLISION_STEP / 2)
+            if contact is not None:
+                raise Blocked(f'the plan would hit an obstacle: {contact}')
         return planned
 
     def _cycle(self, checker):

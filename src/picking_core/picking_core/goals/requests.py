@@ -91,7 +91,7 @@ class Goal:
     rest : Rest or None
         Set on the rest of a running harvest planned again around a changed world.
     retargets : int
-        How many times its target was moved while it ran.
+        How many times its target was moved while it ran; ``moved_by`` names the newest move (its message's stamp).
     finish, feedback : callable or None
         An action goal's hooks: ``finish(outcome, message, code, duration)`` once when it ends,
         ``feedback(phase, time_left, tracking_error)``.
@@ -105,6 +105,7 @@ class Goal:
     attempt: int = 0
     rest: Rest | None = None
     retargets: int = 0
+    moved_by: str = ''
     finish: Callable | None = field(default=None, repr=False)
     feedback: Callable | None = field(default=None, repr=False)
 

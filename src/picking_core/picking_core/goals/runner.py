@@ -31,6 +31,8 @@ from .lifecycle import LATE_REPLANS, Ending, Flight, Lifecycle, Outcome, State
 from .requests import Kind, Rest, Target
 from .start import Running, Start, Timing, choose_start
 
+#: s between the samples a plan's peak velocity and acceleration are read at (whatever its points' spacing).
+PEAK_SAMPLING = 0.01
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -82,10 +84,11 @@ class GoalRunner:
             return
         self._handle(goal)
 
-    def retarget(self, pose, wall):
+    def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
-        the same goal; a newer re-target arriving while this one waits replaces it. Returns None, or why the
-        re-target was not taken (no such goal; a pick whose gripper has closed)."""
+        the same goal; a newer re-target arriving while this one waits replaces it; ``stamp`` names the re-target (its
+        message's stamp, in the statuses). Returns None, or why the re-target was not taken (no such goal; a pick
+        whose gripper has closed)."""
         goal = self._retargetable()
         if goal is None:
             return 'no pose or pick goal runs to move'
@@ -94,7 +97,8 @@ class GoalRunner:
                 flight.elapsed >= flight.planned.plan.extra.get('grasp_start', math.inf):
             return 'the gripper has closed on the apple: its target no longer moves'
         self._moved(goal.key, 'received')
-        self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1))
+        self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1,
+                                moved_by=stamp))
         return None
 
     def _moved(self, key, what):
@@ -202,8 +206,10 @@ class GoalRunner:
         if goal.kind == Kind.HARVEST:
             self._harvest_sent(goal, planned, flight)
         self.port.send(flight, points, start.time)
-        self.port.log('INFO', f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
-                              f'{start.words()}, planned in {took * 1e3:.1f} ms')
+        # (A stream of re-targets is said on planner_status: the log says each goal's first plan.)
+        self.port.log('DEBUG' if goal.retargets else 'INFO',
+                      f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
+                      f'{start.words()}, planned in {took * 1e3:.1f} ms')
 
     def _plan(self, goal, planner):
         """``(start, planned)``: where the plan starts and the plan."""
@@ -239,7 +245,7 @@ class GoalRunner:
     def _points(self, planner, planned, start, names):
         """The plan's points, checked as the controller will check them (a plan it would refuse is never sent)."""
         from ..kinematics import Unreachable
-        arm, period = planner.planner.arm, planner.planner.settings.sample_period
+        arm, period = planner.planner.arm, planner.planner.settings.point_period
         before = np.concatenate([start.state[2], np.zeros(len(names) - arm.dof)])
         points = waypoints(planned.plan.trajectory, period, before=before)
         try:
@@ -264,11 +270,12 @@ class GoalRunner:
     @staticmethod
     def _figures(goal, planned, start, took, planner):
         plan = planned.plan
-        summary = plan.summary(planner.planner.settings.sample_period)
+        summary = plan.summary(PEAK_SAMPLING)
         return dict(method=plan.method, duration=plan.duration, start=start.source,
                     peak_velocity=summary['peak_velocity'], peak_acceleration=summary['peak_acceleration'],
                     segments='; '.join(f'{s.label}: {s.method} {s.duration:.3f} s' for s in plan.segments),
-                    planning_ms=took * 1e3, attempt=goal.attempt + 1, retargets=goal.retargets, **plan.extra)
+                    planning_ms=took * 1e3, attempt=goal.attempt + 1, retargets=goal.retargets,
+                    **({'retarget': goal.moved_by} if goal.moved_by else {}), **plan.extra)
 
     def _harvest_sent(self, goal, planned, flight):
         for run in self.harvests.values():           # the one it replaces keeps the apples in the box by then

@@ -22,8 +22,19 @@ every joint keeps its jerk limit; cubic and LSPB moves step their acceleration
 
 from .limits import feasible_start
 from .planner import Planner
-from .settings import (DEFAULT_JERK_PER_ACCEL, JERK_UNBOUNDED, JOINT_METHODS, PATH_METHODS, PLAN_MARGIN, POSE_METHODS,
-                       STRETCH_TIGHT, VIA_SPEEDS, Plan, PlannerSettings, Segment)
+from .settings import (
+                       DEFAULT_JERK_PER_ACCEL,
+                       JERK_UNBOUNDED,
+                       JOINT_METHODS,
+                       PATH_METHODS,
+                       PLAN_MARGIN,
+                       POSE_METHODS,
+                       STRETCH_TIGHT,
+                       VIA_SPEEDS,
+                       Plan,
+                       PlannerSettings,
+                       Segment,
+)
 
 __all__ = ['DEFAULT_JERK_PER_ACCEL', 'JERK_UNBOUNDED', 'JOINT_METHODS', 'PATH_METHODS', 'PLAN_MARGIN', 'POSE_METHODS',
            'STRETCH_TIGHT', 'VIA_SPEEDS', 'Plan', 'Planner', 'PlannerSettings', 'Segment', 'feasible_start']

@@ -7,10 +7,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import geometry
+from ..methods import JOINT_METHODS, PATH_METHODS, POSE_METHODS  # noqa: F401 - re-exported with the settings
+from ..trajectory import PiecewisePolynomial
 
-JOINT_METHODS = ('cubic', 'quintic', 'lspb', 'optimal')
-POSE_METHODS = JOINT_METHODS + ('line',)
-PATH_METHODS = ('via_lspb', 'quintic_via', 'optimal', 'line', 'arc')
 #: Profiles whose acceleration steps (unbounded jerk): refused when ``limit_jerk`` is set.
 JERK_UNBOUNDED = ('cubic', 'lspb', 'via_lspb')
 #: Jerk limit assumed for joints that have none, per second times their acceleration limit.
@@ -43,7 +42,10 @@ class PlannerSettings:
     duration : float
         Fixed duration of a pose move, s; 0 means the shortest within limits.
     sample_period : float
-        Spacing of the trajectory points, s.
+        Spacing of the samples a plan is made and checked at (a Cartesian path's IK, the shortest segment), s.
+    point_period : float
+        Longest time between two points of a plan as it is sent (every break of the plan is a point too, so a
+        controller that runs quintics through the points runs it exactly), s.
     cartesian_speed, cartesian_accel : float
         Initial guesses for line and arc timing, m/s and m/s^2 (stretched when
         the joints need more time).
@@ -65,6 +67,7 @@ class PlannerSettings:
     speed_scale: float = 0.5
     duration: float = 0.0
     sample_period: float = 0.01
+    point_period: float = 0.01
     cartesian_speed: float = 0.6
     cartesian_accel: float = 4.0
     cartesian_profile: str = 'quintic'
@@ -81,7 +84,7 @@ class PlannerSettings:
                              f'{", ".join(geometry.PROFILES)}')
         if not 0.0 < self.speed_scale <= 1.0:
             raise ValueError(f'speed_scale must be in (0, 1], got {self.speed_scale}')
-        for name in ('sample_period', 'cartesian_speed', 'cartesian_accel', 'max_joint_step'):
+        for name in ('sample_period', 'point_period', 'cartesian_speed', 'cartesian_accel', 'max_joint_step'):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f'{name} must be > 0, got {value}')
@@ -127,7 +130,7 @@ class Plan:
         Event times and figures for reports (grasp and release times).
     """
 
-    trajectory: trajectory.PiecewisePolynomial
+    trajectory: PiecewisePolynomial
     method: str
     segments: list = field(default_factory=list)
     cartesian: list = field(default_factory=list)

@@ -10,9 +10,9 @@ extra attributes) whose ``sample(t)`` gives ``(q, qd, qdd)`` each of shape
 """
 
 from .lspb import Lspb, ViaLspb, lspb, min_lspb_accel, via_lspb, via_lspb_timing
+from .optimal import time_optimal, time_optimal_stop
 from .piecewise import PiecewisePolynomial, concatenate, hold, stack, use_compiled_kernels
 from .polynomial import brake, cubic, held_within_limits, hermite_coeffs, quintic
-from .optimal import time_optimal, time_optimal_stop
 from .via import quintic_via
 from .waypoints import STEP, step_pairs, through_waypoints, waypoints
 
