@@ -30,6 +30,7 @@ setup(
             'picking-goal = picking_bringup.goal:main',
             'picking-plan = picking_bringup.plan:main',
             'picking-demo = picking_bringup.demo:main',
+            'picking-foxglove = picking_bringup.foxglove:main',
         ],
     },
 )

@@ -14,6 +14,7 @@ setup(
         ('share/' + package_name + '/urdf', glob.glob('urdf/*')),
         ('share/' + package_name + '/scenes', glob.glob('scenes/*')),
         ('share/' + package_name + '/platforms', glob.glob('platforms/*')),
+        ('share/' + package_name + '/viewers', glob.glob('viewers/*')),
     ],
     install_requires=['setuptools'],
     # Test dependencies go in extras_require: tests_require is ignored by colcon
@@ -22,6 +23,6 @@ setup(
     zip_safe=True,
     maintainer='Picking arm team',
     maintainer_email='picking-arm@example.org',
-    description="The picking arm's description: URDFs with their joint limits, scenes of obstacles, platform layouts, and their lookup.",
+    description="The picking arm's description: URDFs with their joint limits, scenes of obstacles, platform layouts, viewer files (Foxglove, RViz), and their lookup.",
     license='Apache-2.0',
 )

@@ -96,6 +96,21 @@ class Recorder:
             self.types[topic] = msg_class
             node.create_subscription(msg_class, topic, self._callback(topic), qos, raw=True)
 
+    def add_frames(self, node, namespaces=('',)):
+        """Record what a viewer needs to draw the arms with no other set-up: ``/tf``, ``/tf_static``, and each
+        arm's ``robot_description`` and ``world_markers`` (latched: the recording starts with them)."""
+        from std_msgs.msg import String
+        from tf2_msgs.msg import TFMessage
+        from visualization_msgs.msg import MarkerArray
+
+        from picking_common.tf import TF_QOS, TF_STATIC_QOS
+        from picking_common.topics import LATCHED
+        self.add(node, {'/tf': TFMessage}, TF_QOS)
+        self.add(node, {'/tf_static': TFMessage}, TF_STATIC_QOS)
+        for ns in namespaces:
+            prefix = f'/{ns.strip("/")}/' if ns.strip('/') else ''
+            self.add(node, {f'{prefix}robot_description': String, f'{prefix}world_markers': MarkerArray}, LATCHED)
+
     def _callback(self, topic):
         def store(data):
             with self.lock:

@@ -1,4 +1,4 @@
-"""Where the arm's description lives: URDFs with their joint limits, scenes, platform layouts.
+"""Where the arm's description lives: URDFs with their joint limits, scenes, platform layouts, viewer files.
 
 The package's data folder is looked up in this order: the ``PICKING_DESCRIPTION`` environment
 variable (a folder laid out as this package: ``urdf/``, ``scenes/``, ``platforms/``), the
@@ -60,3 +60,8 @@ def scene_path(name: str = 'workcell') -> Path:
 def platform_path(name: str = 'platform') -> Path:
     """A platform's layouts of arms (``platforms/<name>.yaml``)."""
     return _existing(share_dir() / 'platforms' / f'{name}.yaml', 'platform file')
+
+
+def viewer_path(name: str = 'picking_arm.foxglove.json') -> Path:
+    """A viewer's file (``viewers/<name>``): ``picking_arm.foxglove.json`` (a Foxglove layout) or ``picking_arm.rviz``."""
+    return _existing(share_dir() / 'viewers' / name, 'viewer file')
