@@ -9,12 +9,11 @@ import subprocess
 from pathlib import Path
 
 import pytest
-
 from rosstack import BIN
 
 ROOT = Path(__file__).resolve().parents[2]
 TOOLS = ('picking-stack', 'picking-goal', 'picking-plan', 'picking-demo', 'picking-sim', 'picking-controller',
-         'picking-planner', 'picking-harvester')
+         'picking-planner', 'picking-harvester', 'picking-state-publisher', 'picking-foxglove')
 SUBCOMMANDS = [('picking-goal', s) for s in ('pose', 'pick', 'path', 'harvest', 'tree', 'stop')] + \
     [('picking-plan', s) for s in ('cubic', 'quintic', 'lspb', 'via-lspb', 'quintic-via', 'arc', 'workspace')]
 
@@ -42,7 +41,8 @@ def test_each_subcommand_has_help(tool, sub):
                                   ('picking-goal', 'pose', 0.6, 0.1, 0.4, '--method', 'spline'),
                                   ('picking-plan', 'lspb', '--q0', 15), ('picking-plan', 'cubic'),
                                   ('picking-goal', 'harvest'), ('picking-goal', 'harvest', '--tree', 0),
-                                  ('picking-sim', 'extra'), ('picking-stack', '--domain', 999)])
+                                  ('picking-sim', 'extra'), ('picking-stack', '--domain', 999),
+                                  ('picking-stack', '--without', 'picking-planner')])
 def test_missing_or_bad_arguments_exit_2_with_the_usage(args):
     done = run(*args)
     assert done.returncode == 2, (done.stdout, done.stderr)
@@ -121,3 +121,56 @@ def test_every_picking_stack_example_brings_the_arm_up_and_down(tmp_path):
         done = run('picking-stack', *args, '--for', 2, '--log-dir', tmp_path, timeout=120)
         assert done.returncode == 0, (line, done.stdout, done.stderr)
         assert 'is up' in done.stdout and 'exit code 0' in done.stdout, done.stdout
+
+
+def test_a_stack_without_its_simulator_waits_for_a_driver_and_keeps_each_runs_logs_apart(tmp_path):
+    """--without picking-sim starts the rest and waits for a real arm's joint_states; none comes here, so it
+    gives up at its timeout saying what it waited for. Each run's logs are in a folder of their own, the newest
+    linked as latest."""
+    done = run('picking-stack', '--without', 'picking-sim', '--timeout', 8, '--log-dir', tmp_path, timeout=120)
+    assert done.returncode == 1 and 'no joint_commands' in done.stderr, (done.stdout, done.stderr)
+    assert 'started picking-sim' not in done.stdout and 'started picking-controller' in done.stdout
+    latest = tmp_path / 'latest'
+    assert latest.is_symlink() and 'waiting for joint_states' in (latest / 'root' / 'picking-controller.1.log').read_text()
+    again = run('picking-stack', '--without', 'picking-sim', '--timeout', 1, '--log-dir', tmp_path, timeout=120)
+    assert again.returncode == 1
+    runs = [d for d in tmp_path.iterdir() if d.is_dir() and not d.is_symlink()]
+    assert len(runs) == 2 and latest.resolve() == max(runs, key=lambda d: d.stat().st_mtime).resolve()
+
+
+def test_a_node_that_fails_to_start_has_its_reason_printed_by_the_stack(tmp_path):
+    done = run('picking-stack', '-p', 'picking_sim:publish_rate:=-5.0', '--timeout', 30, '--log-dir', tmp_path)
+    assert done.returncode == 1, (done.stdout, done.stderr)
+    assert 'picking-sim stopped by itself with exit code 2' in done.stderr, done.stderr
+    assert 'publish_rate' in done.stderr.split('picking-sim stopped by itself')[1], done.stderr
+    assert 'Traceback' not in done.stderr
+
+
+def test_picking_goal_stop_cancels_a_pick_another_process_sent(tmp_path):
+    """A pick sent by one picking-goal, stopped by another while it moves: the stop names what it canceled, the
+    pick ends canceled (exit 3) with the arm braked to rest, and a stop with nothing running says so."""
+    import time
+
+    from picking_bringup.stack import Stack
+    stack = Stack('/stop', tmp_path)
+    try:
+        stack.wait_ready()
+        ns = ['--ros-args', '-r', '__ns:=/stop']
+        pick = subprocess.Popen([str(BIN / 'picking-goal'), 'pick', '0.7', '0.15', '0.65', '--rpy', '0', '90', '0', *ns],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
+        lines = []
+        for line in pick.stdout:                      # until the arm moves
+            lines.append(line)
+            if 'P1 approach' in line:
+                break
+        done = run('picking-goal', 'stop', *ns, timeout=60)
+        rest = pick.communicate(timeout=60)[0]
+        assert done.returncode == 0 and 'canceling (' in done.stdout and 'pick' in done.stdout, done.stdout
+        assert pick.returncode == 3 and 'canceled:' in rest, ''.join(lines) + rest
+        assert rest.count('canceled') == 1, rest              # said once, not "canceled: canceled: ..."
+        time.sleep(0.5)
+        idle = run('picking-goal', 'stop', *ns, timeout=60)
+        assert idle.returncode == 0 and 'no goal was running' in idle.stdout, idle.stdout
+    finally:
+        codes = stack.stop()
+    assert set(codes.values()) == {0}, codes

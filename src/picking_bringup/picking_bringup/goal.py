@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-import yaml
 from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
@@ -45,13 +44,10 @@ from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
-from scipy.spatial.transform import Rotation
 
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
-
-from picking_core.harvest import synthetic_tree
-from picking_core.planning import PATH_METHODS, POSE_METHODS
+from picking_core.methods import PATH_METHODS, POSE_METHODS
 
 EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
 #: s of discovery before picking-goal says what it waits for.
@@ -85,7 +81,7 @@ def build_parser():
     p.add_argument('--method', choices=PATH_METHODS, help="for this goal only (default: the planner's)")
     p.add_argument('--arc', action='store_true', help='same as --method arc (2 poses: through, end)')
     for kind in ('pose', 'pick', 'path'):
-        sub.choices[kind].add_argument('--frame', default='base_link', help='frame of the poses (only base_link)')
+        sub.choices[kind].add_argument('--frame', default='base_link', help='frame of the poses: any frame /tf knows (default: %(default)s)')
     for kind, frame, words in (('harvest', 'base_link', "harvest a tree's apples with this arm (harvest_targets)"),
                                ('tree', 'platform', "harvest a tree with every arm of the platform (picking-harvester's "
                                                     'tree_targets)')):
@@ -96,7 +92,7 @@ def build_parser():
         p.add_argument('--seed', type=int, default=0, help='of the synthetic tree (default 0)')
         p.add_argument('--rpy', type=float, nargs=3, default=[0.0, 90.0, 0.0], metavar=('R', 'P', 'Y'),
                        help='grasp orientation of apples given without one, degrees (default 0 90 0: along +x)')
-        p.add_argument('--frame', default=frame, help=f'frame of the poses (only {frame})')
+        p.add_argument('--frame', default=frame, help='frame of the poses: any frame /tf knows (default: %(default)s)')
     p.add_argument('--platform', help='the platform file whose canopy --tree spans (default: picking_description/platforms/platform.yaml)')
     p.add_argument('--layout', help='its layout (default: its default)')
     sub.add_parser('stop', parents=[common], help='cancel every goal of the planner and its controller (the arm '
@@ -118,6 +114,7 @@ def quaternion(args):
         if not (np.all(np.isfinite(q)) and np.linalg.norm(q) > 1e-9):
             raise ValueError('--quat must be finite and not zero')
         return (q / np.linalg.norm(q)).tolist()
+    from scipy.spatial.transform import Rotation
     rpy = args.rpy if args.rpy is not None else (180.0, 0.0, 0.0)
     return Rotation.from_euler('xyz', rpy, degrees=True).as_quat().tolist()
 
@@ -179,30 +176,44 @@ def wait_for_server(node, action, name, timeout):
     return False
 
 
+#: The actions `picking-goal stop` cancels: the planner's three and its controller's (which runs the plans of the
+#: topics' goals and of a harvest too).
+STOPPED = ('move_to_pose', 'follow_path', 'pick', 'follow_joint_trajectory')
+
+
 def stop(node, timeout):
-    """Cancel every goal of the planner's three actions and of its controller (a cancel request naming
-    no goal cancels all; the controller's holds the plans of the topics' goals, a harvest's too)."""
+    """Cancel every goal of :data:`STOPPED`, whoever sent it, at once: the four cancel services are found together
+    and asked together (a cancel request naming no goal cancels all)."""
     from action_msgs.srv import CancelGoal
-    canceled = 0
-    for name in ('move_to_pose', 'follow_path', 'pick', 'follow_joint_trajectory'):
-        client = node.create_client(CancelGoal, f'{name}/_action/cancel_goal')
-        if not client.wait_for_service(timeout_sec=min(DISCOVERY, timeout)):
-            # (A process just started may need longer than that to discover the services on a busy machine.)
-            print(f'picking-goal: no {name} action server yet; waiting up to {timeout:g} s', file=sys.stderr,
-                  flush=True)
-            if not client.wait_for_service(timeout_sec=max(timeout - DISCOVERY, 0.0)):
-                print(f'picking-goal: no {name} action server to stop', file=sys.stderr)
-                return EXIT_TIMEOUT
-        future = client.call_async(CancelGoal.Request())
-        answer = node.spin_until(lambda: future.done() and future.result(), timeout)
-        canceled += len(answer.goals_canceling) if answer else 0
-    print(f'stop: {canceled} goal{"s" if canceled != 1 else ""} canceling (the arm brakes to rest)')
-    return EXIT_OK
+    clients = {name: node.create_client(CancelGoal, f'{name}/_action/cancel_goal') for name in STOPPED}
+    if not node.spin_until(lambda: all(c.service_is_ready() for c in clients.values()), DISCOVERY):
+        # (A process just started may need longer than that to discover the services on a busy machine.)
+        print(f'picking-goal: waiting up to {timeout:g} s for the action servers', file=sys.stderr, flush=True)
+        node.spin_until(lambda: all(c.service_is_ready() for c in clients.values()), max(timeout - DISCOVERY, 0.0))
+    ready = {name: c for name, c in clients.items() if c.service_is_ready()}
+    if not ready:
+        print('picking-goal: no action server to stop (is the arm up, in this namespace?)', file=sys.stderr)
+        return EXIT_TIMEOUT
+    missing = sorted(set(clients) - set(ready))
+    if missing:
+        print(f'picking-goal: no {", ".join(missing)} server: not stopped there', file=sys.stderr)
+    futures = {name: c.call_async(CancelGoal.Request()) for name, c in ready.items()}
+    node.spin_until(lambda: all(f.done() for f in futures.values()), timeout)
+    canceling = {name: len(f.result().goals_canceling) for name, f in futures.items() if f.done() and f.result()}
+    total = sum(canceling.values())
+    if total:
+        where = ', '.join(f'{n} {name}' for name, n in canceling.items() if n)
+        print(f'stop: {total} goal{"s" if total != 1 else ""} canceling ({where}): the arm brakes to rest')
+    else:
+        print('stop: no goal was running; the arm holds where it is')
+    return EXIT_OK if len(canceling) == len(ready) else EXIT_TIMEOUT
 
 
 def harvest_poses(args):
     """The apples of a harvest as 4x4 poses: a synthetic ``--tree`` or the ``--file``'s; ValueError
     saying what is wrong with them."""
+    import yaml
+    from scipy.spatial.transform import Rotation
     if args.tree is not None:
         if args.tree < 1:
             raise ValueError('--tree needs at least one apple')
@@ -211,6 +222,7 @@ def harvest_poses(args):
             from picking_description import platform_path
             platform = Platform.from_yaml(args.platform or platform_path(), args.layout)
             return platform.tree(args.tree, seed=args.seed)
+        from picking_core.harvest import synthetic_tree
         return synthetic_tree(args.tree, seed=args.seed)
     try:
         data = yaml.safe_load(Path(args.file).read_text())
@@ -249,6 +261,7 @@ def harvest(args, node, poses):
         if not node.spin_until(lambda: pub.get_subscription_count() > 0, max(args.timeout - DISCOVERY, 0.0)):
             print(f'picking-goal: nobody subscribes to {where}', file=sys.stderr)
             return EXIT_TIMEOUT
+    from scipy.spatial.transform import Rotation
     msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()) for T in poses])
     msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
     key, t_sent, seen = stamp_key(msg.header.stamp), time.monotonic(), 0
@@ -340,8 +353,8 @@ def run(args, node):
         return EXIT_TIMEOUT
     res, took = done.result, time.monotonic() - t_sent
     outcome = {0: 'succeeded', 1: 'refused', 2: 'aborted', 3: 'superseded', 4: 'canceled'}.get(res.outcome, '?')
-    print(f'{outcome}: {res.message} ({took:.2f} s after sending; plan {res.duration:.3f} s; '
-          f'largest tracking error {progress["error"]:.5f} rad)')
+    moved = f'; plan {res.duration:.3f} s; largest tracking error {progress["error"]:.5f} rad' if res.duration > 0 else ''
+    print(f'{outcome}: {res.message} ({took:.2f} s after sending{moved})')
     if done.status == GoalStatus.STATUS_SUCCEEDED:
         return EXIT_OK
     return EXIT_REFUSED if res.outcome == action_type.Result.REFUSED else EXIT_FAILED

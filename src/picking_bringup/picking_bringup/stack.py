@@ -1,10 +1,10 @@
-"""``picking-stack``: bring one arm up (simulator, controller, planner) and take it down again.
+"""``picking-stack``: bring one arm up (simulator, state publisher, controller, planner) and take it down again.
 
-There is no launch system here: this is the one command that starts the three nodes with the
-shipped parameter files, each in its own process, in one namespace. It waits until the
-controller holds the arm and the planner listens, then keeps them running until Ctrl-C (or
-``--for`` seconds), stops each by its process id and reports its exit code. The node logs go
-to ``--log-dir`` (and to the terminal with ``--show-logs``).
+There is no launch system here: this is the one command that starts the nodes with the shipped
+parameter files, each in its own process, in one namespace. It waits until the controller holds
+the arm and the planner listens, then keeps them running until Ctrl-C (or ``--for`` seconds),
+stops each by its process id and reports its exit code. Each run's node logs go to a folder of
+their own under ``--log-dir`` (the newest also as ``latest``; streamed with ``--show-logs``).
 
     picking-stack                                  # one arm in the root namespace, until Ctrl-C
     picking-stack --ns /arm2 -p picking_controller:update_rate:=250.0
@@ -28,9 +28,16 @@ from pathlib import Path
 #: The nodes in start order: their executable, ROS node name and parameter files in config/.
 NODES = {
     'picking-sim': ('picking_sim', ('sim.yaml',)),
+    'picking-state-publisher': ('picking_state_publisher', ()),
     'picking-controller': ('picking_controller', ('controller.yaml',)),
     'picking-planner': ('picking_planner', ('planner.yaml', 'pick_cycle.yaml')),
 }
+#: The nodes that name the arm's frames on /tf (each gets the stack's frame_prefix).
+FRAMED = ('picking-sim', 'picking-state-publisher', 'picking-planner')
+#: The nodes a user may leave out, to run a real arm's driver or robot_state_publisher in their place.
+REPLACEABLE = ('picking-sim', 'picking-state-publisher')
+#: Lines of a failed node's log printed with the failure.
+TAIL_LINES = 12
 BIN = Path(sys.executable).parent
 
 
@@ -105,6 +112,24 @@ class NodeProcess:
             self.log.flush()
         return self.log_path.read_text(errors='replace')
 
+    def tail(self, lines=TAIL_LINES):
+        """The last ``lines`` lines of its log, indented, under a line naming the file."""
+        last = self.output().rstrip('\n').splitlines()[-lines:]
+        return '\n'.join([f'  {self.log_path}, last {len(last)} lines:', *(f'    {line}' for line in last)])
+
+
+def foxglove_process(ns, port, log_dir, echo=False):
+    """``picking-foxglove`` on ``port`` for the topics under ``ns`` (its own process, stopped with the stack)."""
+    return NodeProcess('picking-foxglove', ['--ros-args', '-r', f'__ns:={ns}', '-p', f'port:={int(port)}'],
+                       Path(log_dir) / 'picking-foxglove.log', echo=echo)
+
+
+def secured_args(node_name):
+    """``--enclave /<node>`` when DDS security is on (ROS_SECURITY_ENABLE): each node finds its keys by its name."""
+    if os.environ.get('ROS_SECURITY_ENABLE', '').lower() == 'true':
+        return ['--enclave', f'/{node_name}']
+    return []
+
 
 def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
     """Signal every process by pid at once, as Ctrl-C in a terminal does, then wait for them all
@@ -132,7 +157,8 @@ def probe_node():
             import rclpy
             context = rclpy.Context()
             rclpy.init(context=context)
-            node = rclpy.create_node(f'picking_stack_{os.getpid()}', context=context)
+            # A leading underscore hides it from `ros2 node list`, as the tools' own nodes are.
+            node = rclpy.create_node(f'_picking_stack_{os.getpid()}', context=context)
 
             def close():
                 node.destroy_node()
@@ -146,27 +172,38 @@ class Stack:
     """Simulator, controller and planner in namespace ``ns``, each with its files from config/.
 
     ``args`` maps an executable (``'picking-sim'``, ...) to extra ROS arguments (``['-p',
-    'update_rate:=250.0']``); ``files`` to the parameter files it gets instead of the shipped ones.
+    'update_rate:=250.0']``); ``files`` to the parameter files it gets instead of the shipped ones;
+    ``without`` names nodes of :data:`REPLACEABLE` not to start (something else plays their part).
     Node logs go to ``log_dir/<ns>/<executable>.<n>.log`` (``n`` counts that node's starts).
     """
 
-    def __init__(self, ns='/', log_dir='log/stack', args=None, files=None, config=None, echo=False):
+    def __init__(self, ns='/', log_dir='log/stack', args=None, files=None, config=None, echo=False, foxglove=None,
+                 without=()):
         from .shipped import config_dir
         self.ns = '/' + ns.strip('/')
+        #: An arm in a namespace names its frames under it ("arm2/base_link"), as robot_state_publisher's frame_prefix.
+        self.frame_prefix = self.ns.strip('/') + '/' if self.ns != '/' else ''
         self.config = Path(config) if config else config_dir()
         self.log_dir = Path(log_dir) / (self.ns.strip('/') or 'root')
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.args = {name: list((args or {}).get(name, ())) for name in NODES}
+        for name in FRAMED if self.frame_prefix else ():
+            self.args[name] = ['-p', f'frame_prefix:={self.frame_prefix}', *self.args[name]]
         self.files = {name: tuple((files or {}).get(name, NODES[name][1])) for name in NODES}
         self.echo = echo
+        unknown = set(without) - set(REPLACEABLE)
+        if unknown:
+            raise ValueError(f'only {" and ".join(REPLACEABLE)} can be left out, not {", ".join(sorted(unknown))}')
         self.starts = dict.fromkeys(NODES, 0)
         self.nodes = {}
         for name in NODES:
-            self.start(name)
+            if name not in without:
+                self.start(name)
+        self.foxglove = None if foxglove is None else foxglove_process(self.ns, foxglove, self.log_dir, echo)
 
     def start(self, name):
         """(Re)start one node; returns its :class:`NodeProcess`."""
-        args = ['--ros-args', '-r', f'__ns:={self.ns}']
+        args = ['--ros-args', '-r', f'__ns:={self.ns}', *secured_args(NODES[name][0])]
         for f in self.files[name]:
             args += ['--params-file', str(self.config / f)]
         self.starts[name] += 1
@@ -187,11 +224,17 @@ class Stack:
         return self.nodes['picking-planner']
 
     @property
+    def state_publisher(self):
+        return self.nodes['picking-state-publisher']
+
+    @property
     def processes(self):
-        return [self.planner, self.controller, self.sim]
+        """Every process, in stop order (the reverse of the start)."""
+        extra = [self.foxglove] if self.foxglove is not None else []
+        return [*extra, *reversed(self.nodes.values())]
 
     def alive(self):
-        return {name: p.alive() for name, p in self.nodes.items()}
+        return {p.name: p.alive() for p in self.processes}
 
     def wait_ready(self, timeout=60.0):
         """Until the controller holds the arm (joint_commands flow) and the planner listens
@@ -239,7 +282,7 @@ class Stack:
                 node.destroy_subscription(sub)
 
     def stop(self, timeout=10.0):
-        """Stop the three nodes at once (SIGINT, by pid); their exit codes by executable name."""
+        """Stop every node at once (SIGINT, by pid); their exit codes by executable name."""
         procs = self.processes
         return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
 
@@ -265,7 +308,9 @@ class PlatformStack:
     ``args`` as for :class:`Stack`, for every arm (default: :data:`SHARED_RATES` with more than one arm)."""
 
     def __init__(self, platform_file=None, layout=None, ns='/', log_dir='log/stack', args=None, echo=False,
-                 config=None):
+                 config=None, foxglove=None):
+        from scipy.spatial.transform import Rotation
+
         from picking_core.platform import Platform
         from picking_description import platform_path, scene_path
         self.file = Path(platform_file) if platform_file else platform_path()
@@ -282,21 +327,30 @@ class PlatformStack:
             extra['picking-sim'] = list(extra.get('picking-sim', [])) + scene
             for k, v in m.params.items():
                 extra['picking-planner'] += ['-p', f'{k}:={ros_value(v)}']
+            xyz, rpy = m.base[:3, 3], Rotation.from_matrix(m.base[:3, :3]).as_euler('xyz')
+            extra['picking-state-publisher'] = list(extra.get('picking-state-publisher', [])) + [
+                '-p', f'parent_frame:={self.platform.frame}', '-p', f'parent_xyz:={ros_value(xyz.tolist())}',
+                '-p', f'parent_rpy:={ros_value(rpy.tolist())}']
             self.arms.append(Stack(f'{self.ns.rstrip("/")}/{m.namespace}', log_dir, args=extra, config=config,
                                    echo=echo))
         self.log_dir = Path(log_dir) / (self.ns.strip('/') or 'root')
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        harvester = ['--ros-args', '-r', f'__ns:={self.ns}', '-p', f'platform_file:={self.file}']
+        harvester = ['--ros-args', '-r', f'__ns:={self.ns}', *secured_args('picking_harvester'),
+                     '-p', f'platform_file:={self.file}']
         if layout:
             harvester += ['-p', f'layout:={layout}']
         self.harvester = NodeProcess('picking-harvester', harvester, self.log_dir / 'picking-harvester.log', echo=echo)
+        self.foxglove = None if foxglove is None else foxglove_process(self.ns, foxglove, self.log_dir, echo)
 
     @property
     def processes(self):
-        return [self.harvester] + [p for s in self.arms for p in s.processes]
+        extra = [self.foxglove] if self.foxglove is not None else []
+        return [*extra, self.harvester] + [p for s in self.arms for p in s.processes]
 
     def alive(self):
         out = {'picking-harvester': self.harvester.alive()}
+        if self.foxglove is not None:
+            out['picking-foxglove'] = self.foxglove.alive()
         for s in self.arms:
             out.update({f'{s.ns}/{n}': up for n, up in s.alive().items()})
         return out
@@ -324,6 +378,40 @@ def overrides(items):
     return out
 
 
+def run_log_dir(root):
+    """A folder of its own for this run's logs under ``root`` (named by the time), linked as ``root/latest``."""
+    root = Path(root)
+    run = root / time.strftime('%Y-%m-%d_%H-%M-%S')
+    n = 1
+    while run.exists():
+        n += 1
+        run = root / f'{time.strftime("%Y-%m-%d_%H-%M-%S")}.{n}'
+    run.mkdir(parents=True)
+    latest = root / 'latest'
+    try:
+        if latest.is_symlink() or latest.exists():
+            latest.unlink()
+        latest.symlink_to(run.name)
+    except OSError:
+        pass                              # a file system without links: the run's folder is printed anyway
+    return run
+
+
+def up_line(stack, args):
+    """What is up, in words: the arm or arms, the mode, where to watch them."""
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')
+    if args.platform is not None:
+        what = (f'{len(stack.arms)} arms and picking-harvester in {stack.ns} are up (domain {domain}): their '
+                'controllers hold them, their planners listen')
+    else:
+        what = f'the arm in {stack.ns} is up (domain {domain}): the controller holds it, the planner listens'
+    if args.paper:
+        what += "; planning with the paper's methods (config/paper_methods.yaml)"
+    if args.foxglove is not None:
+        what += f'; live in Foxglove at ws://127.0.0.1:{args.foxglove}'
+    return what
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog='picking-stack', description=__doc__.split('\n\n')[0],
                                      epilog='Examples:\n  picking-stack\n  picking-stack --ns /arm2 --domain 7\n'
@@ -333,7 +421,8 @@ def main(argv=None):
     parser.add_argument('--domain', type=int, help='ROS_DOMAIN_ID (default: the environment\'s, else 0)')
     parser.add_argument('-p', dest='params', action='append', default=[], metavar='NODE:NAME:=VALUE',
                         help='a parameter override for one node, e.g. picking_sim:noise_std:=0.001 (repeatable)')
-    parser.add_argument('--log-dir', type=Path, default=Path('log/stack'), help='node logs (default: %(default)s)')
+    parser.add_argument('--log-dir', type=Path, default=Path('log/stack'),
+                        help='node logs, in a folder per run (default: %(default)s/<time>, the newest as latest)')
     parser.add_argument('--show-logs', action='store_true', help='stream the node logs to this terminal too')
     parser.add_argument('--for', dest='duration', type=float, metavar='S',
                         help='stop after S seconds up (default: run until Ctrl-C)')
@@ -342,6 +431,12 @@ def main(argv=None):
                         help='every arm of a platform (default file: picking_description/platforms/platform.yaml) in its namespace under --ns, '
                              'and picking-harvester, the coordinator of their harvest')
     parser.add_argument('--layout', help='the layout of the platform file (default: its default)')
+    parser.add_argument('--foxglove', nargs='?', const=8765, type=int, metavar='PORT',
+                        help='watch the arm live in Foxglove: a WebSocket server on 127.0.0.1:PORT (default 8765), '
+                             'started and stopped with the stack')
+    parser.add_argument('--without', action='append', default=[], choices=REPLACEABLE, metavar='EXE',
+                        help='leave a node out to run something else in its place: picking-sim (a real arm\'s '
+                             'driver) or picking-state-publisher (robot_state_publisher); repeatable')
     parser.add_argument('--paper', action='store_true',
                         help="the paper's interpolation methods (config/paper_methods.yaml) instead of the shipped "
                              'jerk-limited, blended ones')
@@ -360,25 +455,26 @@ def main(argv=None):
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stopping.set())
     files = {'picking-planner': NODES['picking-planner'][1] + ('paper_methods.yaml',)} if args.paper else None
+    if args.platform is not None and args.without:
+        parser.error('--without runs one arm: not with --platform')
+    log_dir = run_log_dir(args.log_dir)
     if args.platform is not None:
         try:
-            stack = PlatformStack(args.platform or None, args.layout, args.ns, args.log_dir, args=extra or None,
-                                  echo=args.show_logs)
+            stack = PlatformStack(args.platform or None, args.layout, args.ns, log_dir, args=extra or None,
+                                  echo=args.show_logs, foxglove=args.foxglove)
         except (OSError, ValueError) as exc:
             parser.error(str(exc))
         started = {f'{p.name} ({p.log_path.parent.name})': p for p in stack.processes}
     else:
-        stack = Stack(args.ns, args.log_dir, args=extra, files=files, echo=args.show_logs)
+        stack = Stack(args.ns, log_dir, args=extra, files=files, echo=args.show_logs, foxglove=args.foxglove,
+                      without=args.without)
         started = stack.nodes
     for name, p in started.items():
         print(f'picking-stack: started {name} (pid {p.pid})', flush=True)
     code = 0
     try:
         stack.wait_ready(args.timeout)
-        what = (f'{len(stack.arms)} arms and picking-harvester in {stack.ns} are' if args.platform is not None
-                else f'the arm in {stack.ns} is')
-        print(f'picking-stack: {what} up (domain {os.environ.get("ROS_DOMAIN_ID", "0")}): '
-              f'the controller holds it, the planner listens. Logs: {stack.log_dir}. Ctrl-C stops it.', flush=True)
+        print(f'picking-stack: {up_line(stack, args)}. Logs: {stack.log_dir}. Ctrl-C stops it.', flush=True)
         end = time.monotonic() + args.duration if args.duration is not None else float('inf')
         while not stopping.is_set() and time.monotonic() < end:
             dead = [n for n, up in stack.alive().items() if not up]
@@ -391,7 +487,11 @@ def main(argv=None):
         print(f'picking-stack: {exc}', file=sys.stderr)
         code = 1
     finally:
+        failed = [p for p in stack.processes if not p.alive()]
         codes = stack.stop()
+        for p in failed:
+            print(f'picking-stack: {p.name} stopped by itself with exit code {p.proc.returncode}; its log:\n'
+                  f'{p.tail()}', file=sys.stderr)
         for name, c in codes.items():
             pid = f' (pid {stack.nodes[name].pid})' if name in getattr(stack, 'nodes', {}) else ''
             print(f'picking-stack: stopped {name}{pid}: exit code {c}', flush=True)

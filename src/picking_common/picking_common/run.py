@@ -13,6 +13,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+#: s a node may take to stop once asked (its launcher kills it some seconds later).
+STOP_LIMIT = 6.0
 #: s a thread waiting for the GIL lets the holder run before asking for it: a 1 kHz loop thread
 #: that wakes while another thread of its process runs Python code starts about that much late
 #: (Python's default interval is several control periods long).
@@ -28,10 +30,15 @@ def run_node(make_node, args=None, help=None):
     shutdown (an RCLError from a wait set, or a spin that never wakes), so the
     signals only set a flag here and the main thread spins in short slices.
     """
+    from rclpy._rclpy_pybind11 import RCLError, RCLInvalidROSArgsError
     from rclpy.utilities import remove_ros_args
     argv = sys.argv if args is None else args
-    own = remove_ros_args(argv)[1:]
     prog = os.path.basename(argv[0]) if argv else 'node'
+    try:
+        own = remove_ros_args(argv)[1:]
+    except RCLInvalidROSArgsError as exc:
+        print(f'{prog}: error: {str(exc).split(", at ")[0]}', file=sys.stderr)
+        return 2
     if help is not None and ('-h' in own or '--help' in own):
         print(help)
         return 0
@@ -47,7 +54,11 @@ def run_node(make_node, args=None, help=None):
     # A real-time loop thread that wakes while another thread runs Python code waits
     # for the GIL up to the switch interval: keep that short.
     sys.setswitchinterval(SWITCH_INTERVAL)
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:
+        print(f'{prog}: ROS could not start: {exc}{_security_hint()}', file=sys.stderr)
+        return 1
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     # A node that does not stop: `kill -USR1 <pid>` writes every thread's Python stack to
     # stderr (from C, even while a thread holds the GIL or waits in the middleware), and a
@@ -68,6 +79,9 @@ def run_node(make_node, args=None, help=None):
             # A bad parameter or file: say what, exit non-zero, no traceback.
             print(f'{sys.argv[0]}: {exc}', file=sys.stderr)
             return 2
+        except RCLError as exc:
+            print(f'{prog}: ROS could not make the node: {exc}{_security_hint()}', file=sys.stderr)
+            return 1
         gc.freeze()                              # the node's own objects too (no collection: cheap)
         _warn_if_named_twice(node)
         # One executor thread: rclpy's multi-threaded executor costs far more per
@@ -79,6 +93,9 @@ def run_node(make_node, args=None, help=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # A node that does not finish stopping within STOP_LIMIT writes every thread's stack and exits 1
+        # (from C: even a thread stuck holding the GIL in the middleware cannot hold the process up).
+        faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
         if node is not None:
             close = getattr(node, 'close', None)
             if close:
@@ -91,6 +108,17 @@ def run_node(make_node, args=None, help=None):
         for sig, handler in old.items():
             signal.signal(sig, handler)
     return 0
+
+
+def _security_hint():
+    """Why a node asked to run secured fails to start, when it was: the Fast DDS of the PyPI wheels has no
+    DDS-Security plugins, so an enforced secure start cannot succeed there whatever the keystore holds."""
+    if os.environ.get('ROS_SECURITY_ENABLE', '').lower() != 'true':
+        return ''
+    return ('\nDDS security was asked for (ROS_SECURITY_ENABLE=true, ROS_SECURITY_STRATEGY='
+            f'{os.environ.get("ROS_SECURITY_STRATEGY", "Permissive")}). Check ROS_SECURITY_KEYSTORE and the enclave '
+            "of this node; and note the PyPI wheels' Fast DDS has no security plugins: secured nodes need an "
+            'apt-installed Jazzy (docs/deployment.md, "Security").')
 
 
 #: s between a node's looks for another of its name, and how many it takes (discovery may be slow on a
