@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import threading
 import time
@@ -24,8 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .demo_report import analyse_and_report, load_demo_settings, log
-from .stack import BIN as HERE, Stack
+from .demo_report import analyse_and_report, load_demo_settings, log, log_checks, run_tool
+from .stack import BIN as HERE
+from .stack import Stack
 
 
 def run_ros_part(args, config, out, demo, stack_initial):
@@ -58,6 +58,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
                    reliable)
     # The 100 Hz and 1 kHz streams as sensor data: a recorder must never slow the arm down.
     rec.add(node, {'joint_states': JointState, 'joint_commands': JointState}, qos_profile_sensor_data)
+    rec.add_frames(node)
     pick = ActionClient(node, Pick, 'pick')
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -152,14 +153,9 @@ def run_arc_scenario(demo, spin_until, rec):
     scale, offset = demo['arc_scale'], np.asarray(demo['arc_offset'], float)
     pts = [np.asarray(p, float) * scale + offset for p in ((10, 3, 4), (11, 3, 5), (10, 3, 6))]
     log(f'scenario 2, Sec. 3.1 arc: P1 P2 P3 scaled by {scale} m, at {np.round(pts, 3).tolist()}')
-    first = subprocess.run([str(HERE / 'picking-goal'), 'pose', *map(str, pts[0]), '--method', 'quintic'],
-                           capture_output=True, text=True, timeout=120, env=os.environ.copy())
+    first = run_tool([HERE / 'picking-goal', 'pose', *pts[0], '--method', 'quintic'], 120)
     n = rec.count('planned_trajectory')
-    arc = subprocess.run([str(HERE / 'picking-goal'), 'path', '--arc', '--pose', *map(str, pts[1]),
-                          '--pose', *map(str, pts[2])],
-                         capture_output=True, text=True, timeout=120, env=os.environ.copy())
-    for line in (first.stdout + arc.stdout).splitlines():
-        log('  ' + line)
+    arc = run_tool([HERE / 'picking-goal', 'path', '--arc', '--pose', *pts[1], '--pose', *pts[2]], 120)
     for what, run in (('the move to P1', first), ('the arc', arc)):
         if run.returncode != 0:
             said = (run.stderr.strip() or run.stdout.strip() or f'exit code {run.returncode}').splitlines()[-1]
@@ -172,7 +168,9 @@ def run_harvest_scenario(demo, spin_until, rec, node):
     """A seeded synthetic tree harvested with picking-goal; its apples and visiting order published as
     markers (recorded, so that Foxglove shows the tree)."""
     from visualization_msgs.msg import MarkerArray
+
     from picking_core.harvest import synthetic_tree
+
     from .demo_report import harvest_markers, harvest_statuses
     n, seed = int(demo.get('harvest_apples', 20)), int(demo.get('harvest_seed', 1))
     log(f'scenario 3, a tree: {n} apples (seed {seed}), harvested with picking-goal harvest')
@@ -180,10 +178,7 @@ def run_harvest_scenario(demo, spin_until, rec, node):
     rec.add(node, {'harvest_markers': MarkerArray}, 10)
     first = rec.count('planned_trajectory')
     t0 = time.monotonic()
-    done = subprocess.run([str(HERE / 'picking-goal'), 'harvest', '--tree', str(n), '--seed', str(seed)],
-                          capture_output=True, text=True, timeout=60 + 10 * n, env=os.environ.copy())
-    for line in done.stdout.splitlines():
-        log('  ' + line)
+    done = run_tool([HERE / 'picking-goal', 'harvest', '--tree', n, '--seed', seed], 60 + 10 * n)
     if done.returncode != 0:
         said = (done.stderr.strip() or done.stdout.strip() or f'exit code {done.returncode}').splitlines()[-1]
         raise RuntimeError(f'the harvest failed: {said.strip()}')
@@ -207,19 +202,19 @@ def run_platform(rec, events, config, out, demo):
 
 def run_orchard(events, config, out, demo):
     """Scenario 5 after the others (their stacks stopped): its section appended to the report."""
-    from .shipped import shipped_orchard
     from .demo_orchard import clear_apples, run_orchard_scenario
+    from .shipped import shipped_orchard
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
     demo = dict(demo, clear_apples=clear_apples(shipped_orchard(n, seed), config))
     return _section(out, events, 'orchard', *run_orchard_scenario(config, out, demo))
 
 
 def _section(out, events, name, lines, files, checks):
-    """A scenario's section appended to the report (and printed); its checks kept in ``events``; whether
+    """A scenario's section appended to the report (its checks summed up in the log); its checks kept in ``events``; whether
     they all hold."""
     report = out / 'report.md'
     report.write_text(report.read_text() + '\n'.join(lines + ['', *[f'- `{f}`' for f in files]]) + '\n')
-    print('\n'.join(lines))
+    log_checks(f'scenario {name}', checks)
     events[name] = checks
     return all(checks.values())
 

@@ -30,14 +30,14 @@ def run_orchard_scenario(config, out, demo):
     from visualization_msgs.msg import MarkerArray
 
     from picking_common.run import BackgroundSpin
+    from picking_common.scene_msgs import cloud_message, scene_markers
     from picking_common.topics import BURST, LATCHED
-
     from picking_core.kinematics import ArmModel
-    from .shipped import shipped_orchard
+    from picking_description import default_urdf
+
     from .plots import plot_orchard
     from .recording import Recorder
-    from picking_description import default_urdf
-    from picking_common.scene_msgs import cloud_message, scene_markers
+    from .shipped import shipped_orchard
 
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
     orchard = shipped_orchard(n, seed)
@@ -53,16 +53,20 @@ def run_orchard_scenario(config, out, demo):
     rec.add(node, {f'{ns}/joint_states': JointState}, qos_profile_sensor_data)
     rec.add(node, {f'{ns}/scene': MarkerArray}, LATCHED)
     rec.add(node, {f'{ns}/canopy_points': PointCloud2}, reliable)
+    rec.add_frames(node, [ns])
     scene_pub = node.create_publisher(MarkerArray, 'scene', LATCHED)
     cloud_pub = node.create_publisher(PointCloud2, 'canopy_points', reliable)
     harvest_pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
     spinner = BackgroundSpin(node)
 
-    def wait(pred, timeout, what, publishing=None):
+    def wait(pred, timeout, what, publishing=None, progress=None):
         """Until ``pred()``; ``publishing = (publisher, msg)`` sent every 0.2 s meanwhile, as a camera
-        sends its clouds (the planner takes them best effort: any one may be dropped)."""
+        sends its clouds (the planner takes them best effort: any one may be dropped); ``progress()`` called
+        at every look (to log what happened since the last)."""
         end, sent = time.monotonic() + timeout, -1.0
         while not pred():
+            if progress is not None:
+                progress()
             if time.monotonic() > end:
                 raise RuntimeError(f'timed out waiting for {what}')
             if not all(stack.alive().values()):
@@ -91,7 +95,14 @@ def run_orchard_scenario(config, out, demo):
         def ended():
             return next((m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key
                          and _values(m).get('state') in FINAL), None)
-        wait(lambda: ended() is not None, 120.0 + 15.0 * n, f'the {label} harvest to end')
+        told = [0]
+
+        def progress():
+            said = [m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key]
+            for m in said[told[0]:]:
+                log(f'  {label} {time.monotonic() - t0:6.1f} s  {m.message}')
+            told[0] = len(said)
+        wait(lambda: ended() is not None, 120.0 + 15.0 * n, f'the {label} harvest to end', progress=progress)
         time.sleep(0.5)                                   # the witness's last look
         final = _values(ended())
         statuses = [m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key]
@@ -203,6 +214,7 @@ def clear_apples(orchard, config):
     from picking_core.kinematics import Unreachable
     from picking_core.kinematics.capsules import ArmCapsules
     from picking_core.pick_cycle import PickCycle
+
     from .shipped import shipped_harvest
     cycle = shipped_harvest(config).cycle
     checker = CollisionChecker(ArmCapsules.from_arm(cycle.arm), orchard.scene, Canopy(orchard.cloud))

@@ -4,15 +4,14 @@ tree``), recorded to ``platform.mcap`` and reported with ``platform.png``."""
 from __future__ import annotations
 
 import os
-import subprocess
 import time
 from functools import partial
 
 import numpy as np
 
-from .demo_report import _table, log
 from picking_description import platform_path
 
+from .demo_report import _table, log, run_tool
 from .shipped import shipped_harvest
 from .stack import BIN, PlatformStack
 
@@ -26,10 +25,10 @@ def run_platform_scenario(config, out, demo):
     from visualization_msgs.msg import MarkerArray
 
     from picking_common.run import BackgroundSpin
-
     from picking_core.platform import Coordinator, Platform
-    from .recording import Recorder
+
     from .demo_report import harvest_markers
+    from .recording import Recorder
 
     n, seed = int(demo.get('platform_apples', 40)), int(demo.get('platform_seed', 1))
     layout = str(demo.get('platform_layout', 'two'))
@@ -45,18 +44,16 @@ def run_platform_scenario(config, out, demo):
     reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     rec = Recorder(node, {'/harvester_status': DiagnosticStatus, '/tree_markers': MarkerArray}, reliable)
     rec.add(node, {f'/{ns}/joint_states': JointState for ns in names}, qos_profile_sensor_data)
+    rec.add_frames(node, names)
     markers = node.create_publisher(MarkerArray, '/tree_markers', 10)
     spinner = BackgroundSpin(node)
     done = None
     try:
         stack.wait_ready()
         t0 = time.monotonic()
-        done = subprocess.run([str(BIN / 'picking-goal'), 'tree', '--tree', str(n), '--seed', str(seed),
-                               '--platform', str(platform_path()), '--layout', layout, '--timeout', '120'],
-                              capture_output=True, text=True, timeout=180 + 10 * n, env=os.environ.copy())
+        done = run_tool([BIN / 'picking-goal', 'tree', '--tree', n, '--seed', seed, '--platform', platform_path(),
+                         '--layout', layout, '--timeout', 120], 180 + 10 * n)
         wall = time.monotonic() - t0
-        for line in done.stdout.splitlines():
-            log('  ' + line)
     except RuntimeError as exc:
         log(f'FAILED: {exc}')
     finally:

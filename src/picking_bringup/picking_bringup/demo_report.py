@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import time
 
 import numpy as np
@@ -10,9 +11,16 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from picking_common.status import stamp_key, status_values
-
-from picking_core.analysis import (REFERENCE_BOUND, cartesian_deviation, corner_path, parse_segments, peak_jerk, pick_corners,
-                        reference_deviation, tracking_error)
+from picking_core.analysis import (
+    REFERENCE_BOUND,
+    cartesian_deviation,
+    corner_path,
+    parse_segments,
+    peak_jerk,
+    pick_corners,
+    reference_deviation,
+    tracking_error,
+)
 from picking_core.kinematics import ArmModel, pose_matrix
 from picking_core.pick_cycle import PickCycle, PickSettings
 from picking_core.planning import Planner, PlannerSettings
@@ -22,6 +30,30 @@ from picking_description import default_urdf
 
 def log(msg):
     print(f'[demo {time.strftime("%H:%M:%S")}] {msg}', flush=True)
+
+
+def run_tool(argv, timeout):
+    """Run a command-line tool, each line it prints logged as it comes (a long harvest shows its progress);
+    a CompletedProcess with what it printed. The tool is killed after ``timeout`` s."""
+    import subprocess
+    import threading
+    proc = subprocess.Popen([str(a) for a in argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=os.environ.copy())
+    err = []
+    reader = threading.Thread(target=lambda: err.extend(proc.stderr), daemon=True)
+    reader.start()
+    killer = threading.Timer(timeout, proc.kill)
+    killer.start()
+    out = []
+    try:
+        for line in proc.stdout:
+            out.append(line)
+            log('  ' + line.rstrip('\n'))
+        proc.wait()
+    finally:
+        killer.cancel()
+    reader.join(timeout=5.0)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, ''.join(out), ''.join(err))
 
 
 def load_demo_settings(config):
@@ -125,7 +157,7 @@ def compare_methods(arm, planner_params, apple_T):
 
 
 def analyse_and_report(rec, events, config, out, quick=False):
-    """Write report.md, report.json, plots and demo.mcap; print the report; True if all checks pass."""
+    """Write report.md, report.json, plots and demo.mcap; log a summary; True if all checks pass."""
     from .plots import plot_corners, plot_path_3d, plot_profiles
     arm = ArmModel.from_urdf(default_urdf())
     demo, planner_params = load_demo_settings(config)
@@ -256,7 +288,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
     tp = t - t[0]
     files.append(plot_profiles(out / 'joints.png', tp, q[:, :n_arm], qd[:, :n_arm], qdd[:, :n_arm],
                                'Pick cycle: planned joint position, velocity, acceleration (Figs. 9-11, 14)', 'rad',
-                               labels=names[:n_arm], marks=starts[1:] - t[0], mark_labels=[s[0] for s in segments[1:]],
+                               labels=names[:n_arm], marks=starts - t[0], mark_labels=[s[0] for s in segments],
                                extra=('gripper opening', q[:, n_arm], 'm') if q.shape[1] > n_arm else None))
     files.append(_plot_error(out / 'tracking_error.png', t_meas[window] - t[0], err[window], names))
     key = PickCycle(Planner(arm), PickSettings(**{k: (tuple(v) if isinstance(v, list) else v)
@@ -283,6 +315,8 @@ def analyse_and_report(rec, events, config, out, quick=False):
                                           'at P4). "P4 in" and "P4 out": the line into the box and the line out of it.'))
     if harvest_plot is not None:
         files.append(harvest_plot)
+    if rec.count('/tf'):
+        files.append(viewer_picture(rec, out, t, segments, starts))
     mcap_path, n_msgs = rec.write_mcap(out / 'demo.mcap')
     files.append(mcap_path)
     decoded = _check_mcap(mcap_path)
@@ -298,8 +332,17 @@ def analyse_and_report(rec, events, config, out, quick=False):
         'reference_deviation': None if deviation is None else [d.tolist() for d in deviation[:3]],
         'max_tracking_error': np.nanmax(np.abs(err), axis=0).tolist(), 'final_error': final.tolist(),
         'cartesian': cart_rows, 'checks': checks, 'files': [str(f) for f in files]}, indent=2))
-    print(report)
+    log(f'pick cycle: {cycle:.2f} s planned; goal reached {events["cycle_wall"]:.2f} s after it was sent; '
+        f'largest tracking error {np.degrees(np.nanmax(np.abs(err[:, :n_arm]))):.3f}°')
+    log_checks('the pick cycle', checks)
     return all(checks.values())
+
+
+def log_checks(what, checks):
+    """One line for a scenario's checks: how many hold, and each that does not."""
+    failed = [k for k, v in checks.items() if not v]
+    log(f'{what}: {len(checks) - len(failed)} of {len(checks)} checks hold'
+        + (f'; NOT: {"; ".join(failed)}' if failed else ''))
 
 
 def harvest_statuses(rec, key):
@@ -356,6 +399,7 @@ def harvest_markers(apples, said, header):
 def harvest_section(rec, event, arm, out):
     """The report's section on scenario 3 and its plot: ``(lines, plot path, checks)``."""
     from picking_core.harvest import synthetic_tree
+
     from .plots import plot_harvest
     said = harvest_statuses(rec, event['goal'])
     final, accepted = said['final'], said['accepted']
@@ -397,8 +441,8 @@ def arc_section(rec, arc_event, arm, names):
     inside = (t_meas >= t[0]) & (t_meas <= t[-1])
     p1, p2, p3 = (np.asarray(p) for p in arc_event['points'])
     tool_plan = arm.fk(q[:, :arm.dof])[:, :3, 3]
-    from picking_core.geometry import Arc
     from picking_core.analysis import distance_to_arc_circle
+    from picking_core.geometry import Arc
     arc = Arc.through(tool_plan[0], p2, p3)
     dev_plan = distance_to_arc_circle(tool_plan, arc).max()
     dev_meas = distance_to_arc_circle(arm.fk(q_meas[inside, :arm.dof])[:, :3, 3], arc).max()
@@ -409,23 +453,68 @@ def arc_section(rec, arc_event, arm, names):
             f'of the tool from the arc: planned {dev_plan * 1e3:.3f} mm, measured {dev_meas * 1e3:.3f} mm.']
 
 
+#: The pick's moments drawn in viewer.png: a label -> the segment it starts.
+VIEWER_MOMENTS = {'at home (P0)': None, 'grasping the apple (P2)': 'grasp', 'releasing it over the box (P5)': 'release'}
+
+
+def viewer_picture(rec, out, t, segments, starts, base='base_link', tool='tool0'):
+    """``viewer.png``: what a 3D viewer shows of the recording (the arm's frames from its own /tf and /tf_static,
+    through a TF buffer, at the pick's moments; the tool's path; the simulator's world), for readers with no viewer."""
+    from picking_common.scene_msgs import scene_from_markers
+    from picking_core.frames import TransformBuffer
+
+    from .plots import plot_viewer
+    frames = TransformBuffer(cache_time=float('inf'))
+    for topic in ('/tf_static', '/tf'):
+        for _, msg in rec.messages(topic):
+            for tr in msg.transforms:
+                v, r = tr.transform.translation, tr.transform.rotation
+                frames.set_transform(tr.header.frame_id, tr.child_frame_id, (v.x, v.y, v.z), (r.x, r.y, r.z, r.w),
+                                     _stamp(tr.header.stamp), static=topic == '/tf_static')
+    names = [f for f in frames.frames() if frames.can_transform(base, f, t[0])]
+    links = [(frames.parent(f), f) for f in names if frames.parent(f) in names]
+    begins = {label: start for (label, _, _), start in zip(segments, starts)}
+    moments = {}
+    for label, segment in VIEWER_MOMENTS.items():
+        when = begins.get(segment, t[0]) if segment else t[0]
+        moments[label] = {f: frames.lookup(base, f, when)[:3, 3] for f in names}
+    tool_path = np.array([frames.lookup(base, tool, s)[:3, 3] for s in np.arange(t[0], t[-1], 0.02)])
+    world = []
+    for _, msg in rec.messages('world_markers')[-1:]:
+        for o in scene_from_markers(msg, lambda header: np.eye(4)).obstacles:
+            if o.kind == 'box':
+                world.append(('box', o.pose, np.asarray(o.size)))
+            elif o.ends is not None:
+                world.append(('rod', o.ends, o.radius))
+    return plot_viewer(out / 'viewer.png', links, moments, tool_path, world,
+                       'The pick as a 3D viewer draws its recording (the arm from /tf)')
+
+
 def _check_mcap(path):
     from mcap_ros2.reader import read_ros2_messages
     return sum(1 for _ in read_ros2_messages(str(path)))
 
 
 def _plot_error(path, t, err, names):
+    """Tracking error over the cycle: the arm's joints in degrees, the gripper (a length) in mm on an axis of its own."""
     from .plots import _pyplot, legend_below
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4.6))
-    for j, n in enumerate(names):
-        scale, unit = (np.degrees(1.0), '°') if n != 'gripper_joint' else (1e3, 'mm')
-        ax.plot(t, err[:, j] * scale, label=f'{n} [{unit}]')
-    ax.set_xlabel('time [s]')
-    ax.set_ylabel('measured − planned [° (gripper: mm)]')
-    ax.set_title('Tracking error over the pick cycle')
-    ax.grid(True, alpha=0.3)
-    legend_below(fig, ax)
+    arm = [j for j, n in enumerate(names) if n != 'gripper_joint']
+    gripper = [j for j, n in enumerate(names) if n == 'gripper_joint']
+    fig, axes = plt.subplots(1 + bool(gripper), 1, sharex=True, figsize=(8, 4.6 + 1.8 * bool(gripper)),
+                             gridspec_kw={'height_ratios': [3, 1][:1 + bool(gripper)]}, squeeze=False)
+    axes = axes[:, 0]
+    for j in arm:
+        axes[0].plot(t, np.degrees(err[:, j]), label=names[j])
+    axes[0].set_ylabel('joint: measured − planned [°]')
+    axes[0].set_title('Tracking error over the pick cycle')
+    for j in gripper:
+        axes[1].plot(t, err[:, j] * 1e3, color='0.3', label=names[j])
+        axes[1].set_ylabel('gripper [mm]')
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel('time [s]')
+    legend_below(fig, axes[0])
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

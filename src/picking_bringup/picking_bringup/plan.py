@@ -54,13 +54,14 @@ def _sample_grid(duration, dt):
     return t if t[-1] >= duration - 1e-12 else np.append(t, duration)
 
 
-def save_profile(traj, out, stem, title, unit, dt):
-    """Sample ``traj`` every ``dt`` s; write ``stem.csv`` and ``stem.png``; return the paths."""
+def save_profile(traj, out, stem, title, unit, dt, labels=None):
+    """Sample ``traj`` every ``dt`` s; write ``stem.csv`` and ``stem.png`` (``labels``: a name per column, by
+    default "joint 1", ...); return the paths."""
     t = _sample_grid(traj.duration, dt)
     q, qd, qdd = traj.sample(t)
     csv_path = write_csv(out / f'{stem}.csv', t, q, qd, qdd)
     from .plots import plot_profiles
-    png = plot_profiles(out / f'{stem}.png', t, q, qd, qdd, title, unit,
+    png = plot_profiles(out / f'{stem}.png', t, q, qd, qdd, title, unit, labels=labels,
                         marks=traj.breaks[1:-1] if len(traj.breaks) < 40 else ())
     return [csv_path, png]
 
@@ -126,7 +127,8 @@ def run_paper(out, dt):
                      f'{seg.blend_position:.2f} deg, cruise {seg.cruise_velocity:.2f} deg/s')
         files += save_profile(seg, out, stem, f'LSPB 15→75° in 3 s, {accel:g}°/s² (Figs. 9-11)', deg, dt)
     both = trajectory.lspb([15.0, 15.0], [75.0, 75.0], 3.0, [42.0, 27.0])
-    files += save_profile(both, out, 'fig9-11_lspb_both', 'LSPB 15→75° in 3 s: 42 and 27°/s²', deg, dt)
+    files += save_profile(both, out, 'fig9-11_lspb_both', 'LSPB 15→75° in 3 s: 42 and 27°/s²', deg, dt,
+                          labels=['blend acceleration 42°/s²', 'blend acceleration 27°/s²'])
     for qf, stem in ((75.0, 'cubic_15_75'), (90.0, 'fig5_cubic_0_90')):
         q0 = 15.0 if qf == 75.0 else 0.0
         seg = trajectory.cubic(q0, qf, 3.0)
@@ -227,8 +229,9 @@ def build_parser():
 def save_workspace(urdf, samples, out):
     """Side and top views of tool positions over random joint values within the limits."""
     from picking_core.kinematics import ArmModel
-    from .plots import plot_workspace
     from picking_description import default_urdf
+
+    from .plots import plot_workspace
     arm = ArmModel.from_urdf(urdf or default_urdf())
     rng = np.random.default_rng(0)
     lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)

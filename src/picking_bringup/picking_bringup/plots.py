@@ -41,9 +41,9 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=(),
     unit : str
         Position unit for the axis labels (``rad``, ``deg``, ``m``).
     marks : sequence of float
-        Times to mark with vertical lines (segment ends, via points).
+        Times to mark with vertical lines (segment starts, via points).
     mark_labels : sequence of str
-        A name for each mark, written at the top of the plot (the segment that starts there).
+        A name for each mark (the segment that starts there): its number written over its span, the names in a key.
     extra : (label, values (N,), unit), optional
         One more quantity on an axis of its own below (the gripper's opening, in m).
     """
@@ -67,10 +67,18 @@ def plot_profiles(path, t, q, qd, qdd, title, unit='rad', labels=None, marks=(),
             axes[3].axvline(m, color='0.8', lw=0.8, zorder=0)
         axes[3].set_ylabel(f'{label} [{extra_unit}]')
         axes[3].grid(True, alpha=0.3)
-    for m, name in zip(marks, mark_labels):
-        axes[0].annotate(name, (m, 1.0), xycoords=('data', 'axes fraction'), rotation=90, fontsize='x-small',
-                         va='top', ha='right', color='0.4')
-    axes[0].set_title(title)
+    # Each segment's number over its span (short ones have no room for a name), the names in a key above.
+    spans = list(marks) + [t[-1]]
+    for i in range(len(mark_labels)):
+        axes[0].annotate(str(i + 1), ((spans[i] + spans[i + 1]) / 2, 1.01), xycoords=('data', 'axes fraction'),
+                         fontsize='small', ha='center', va='bottom', color='0.3')
+    if mark_labels:
+        import textwrap
+        key = textwrap.fill('   '.join(f'{i + 1} {name}' for i, name in enumerate(mark_labels)), 110)
+        fig.suptitle(title)
+        axes[0].set_title(key, fontsize='small', color='0.3', pad=16)
+    else:
+        axes[0].set_title(title)
     axes[-1].set_xlabel('time [s]')
     if n > 1:
         legend_below(fig, axes[0])
@@ -207,8 +215,8 @@ def _tree_figure(path, draw, title, front, figsize):
 
 def plot_platform(path, apples, by_arm, skipped, tools, bases, drawn, title):
     """A tree harvested by several arms, from the front (y-z) and from above (y-x), platform frame:
-    each arm's apples (numbered in its picking order) and tool path in its colour, the arms' bases,
-    and the arms' links (``drawn``: ``(arm, points)``) at a few grasps."""
+    each arm's apples (numbered in its picking order, the number on the apple) and tool path (thin) in its colour,
+    the arms' bases, and the arms' links (thick; ``drawn``: ``(arm, points)``) at a few grasps."""
     p = np.array([T[:3, 3] for T in apples])
     colours = dict(zip(by_arm, ('tab:red', 'tab:blue', 'tab:green', 'tab:purple')))
     b = np.array(bases)
@@ -217,14 +225,18 @@ def plot_platform(path, apples, by_arm, skipped, tools, bases, drawn, title):
         for ns, picked in by_arm.items():
             c = colours[ns]
             if len(tools.get(ns, ())):
-                ax.plot(tools[ns][:, i], tools[ns][:, j], color=c, lw=0.5, alpha=0.45)
+                ax.plot(tools[ns][:, i], tools[ns][:, j], color=c, lw=0.5, alpha=0.45,
+                        label=f'{ns}: its tool path (thin)')
             ax.scatter(p[picked, i], p[picked, j], s=70, color=c, zorder=3, label=f'{ns}: {len(picked)} apples')
+            # Numbers written on their apples (white on the colour), never beside them where they collide.
             for n, k in enumerate(picked):
-                ax.annotate(str(n + 1), p[k, [i, j]], textcoords='offset points', xytext=(5, 5), fontsize=7, color=c)
+                ax.annotate(str(n + 1), p[k, [i, j]], ha='center', va='center', fontsize=6, color='white',
+                            zorder=4)
         if skipped:
             ax.scatter(p[skipped, i], p[skipped, j], s=70, color='0.6', marker='X', zorder=3, label='left on the tree')
-        for ns, pts in drawn:
-            ax.plot(pts[:, i], pts[:, j], color=colours[ns], lw=3, alpha=0.8, solid_capstyle='round')
+        for k, (ns, pts) in enumerate(drawn):
+            ax.plot(pts[:, i], pts[:, j], color=colours[ns], lw=3, alpha=0.8, solid_capstyle='round',
+                    label='an arm\'s links at a grasp (thick)' if k == 0 else None)
         ax.scatter(b[:, i], b[:, j], s=160, marker='s', color='k', zorder=4, label='arm bases')
     return _tree_figure(path, draw, title, 'front view (y, z): apples, tool paths, arms at grasps', (12, 5.4))
 
@@ -276,3 +288,40 @@ def plot_orchard(path, orchard, picked, skipped, tools, title):
 def _width(radius):
     """A line width (points) about as wide as a rod of ``radius`` m in a tree figure's views."""
     return max(1.0, 2 * radius * 220)
+
+
+def plot_viewer(path, links, moments, tool, world, title):
+    """What a 3D viewer shows of a recording, for a reader with no viewer: the arm's links as a skeleton at a few
+    ``moments`` ({label: {frame: (3,) position}}, each drawn from ``links``' (parent, child) pairs), the tool's
+    path ((N, 3)) and the world's boxes and rods (``world``: ``('box', 4x4 pose, size)`` or ``('rod', (2, 3) ends,
+    radius)``)."""
+    plt = _pyplot()
+    fig = plt.figure(figsize=(7.5, 6.5))
+    ax = fig.add_subplot(projection='3d')
+    drawn = [tool]
+    for kind, where, size in world:
+        if kind == 'box':
+            T = where
+            corners = np.array([[sx, sy, sz] for sx in (-0.5, 0.5) for sy in (-0.5, 0.5) for sz in (-0.5, 0.5)])
+            xyz = (T[:3, :3] @ (corners * size).T).T + T[:3, 3]
+            for i in range(8):
+                for j in range(i + 1, 8):
+                    if np.count_nonzero(corners[i] != corners[j]) == 1:      # an edge of the box
+                        ax.plot(*xyz[[i, j]].T, color='0.55', lw=0.8)
+        else:
+            ax.plot(*np.asarray(where).T, color='saddlebrown', lw=max(1.0, size * 200))
+    ax.plot(*tool.T, color='0.25', lw=1.2, ls='--', label='the tool (tool0) over the pick')
+    for k, (label, where) in enumerate(moments.items()):
+        segments = [(where[a], where[b]) for a, b in links if a in where and b in where]
+        for i, (a, b) in enumerate(segments):
+            ax.plot(*np.array([a, b]).T, color=('C0', 'C1', 'C3', 'C4')[k % 4], lw=3, alpha=0.85,
+                    label=label if i == 0 else None)
+        drawn.append(np.array(list(where.values())))
+    ax.set_xlabel('x [m]'), ax.set_ylabel('y [m]'), ax.set_zlabel('z [m]')
+    _equal_axes(ax, np.vstack(drawn))
+    ax.set_title(title)
+    ax.legend(loc='upper left', fontsize='small')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -5,8 +5,8 @@ import pytest
 import yaml
 
 from picking_bringup.demo_report import compare_methods
-from picking_core.kinematics import pose_matrix
 from picking_bringup.shipped import config_dir, shipped_harvest
+from picking_core.kinematics import pose_matrix
 from picking_description import platform_path
 
 
@@ -37,9 +37,9 @@ def test_the_method_comparison_plans_each_cycle_with_its_own_profiles(arm, compa
 
 
 def test_the_corners_figure_shows_the_tool_at_each_corner_through_and_rounded(arm, compared, tmp_path):
-    from picking_core.analysis import corner_path, pick_corners
     from picking_bringup.demo_report import BOX_ROUND_RADIUS, ROUNDED, THROUGH_CORNERS
     from picking_bringup.plots import plot_corners
+    from picking_core.analysis import corner_path, pick_corners
 
     _, plans = compared
     corners = pick_corners(arm, plans[THROUGH_CORNERS])
@@ -62,10 +62,11 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
     """Scenario 3 as the planner reports it: the apples in picking order, the skips with their reasons,
     the markers of the tree and its plot."""
     from std_msgs.msg import Header
-    from picking_common.status import status
+
     from picking_bringup.demo_report import harvest_markers, harvest_statuses
-    from picking_core.harvest import synthetic_tree
     from picking_bringup.plots import plot_harvest
+    from picking_common.status import status
+    from picking_core.harvest import synthetic_tree
 
     said = [status('p', 'OK', 'harvest goal 7.0: accepted', goal='7.0', kind='harvest', state='accepted',
                    order_estimate=3.0, given_order_estimate=3.5),
@@ -96,9 +97,9 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
 
 
 def test_the_platform_figure_draws_each_arms_apples_path_and_links(tmp_path):
-    from picking_core.platform import Coordinator, Platform
-    from picking_bringup.plots import plot_platform
     from picking_bringup.demo_platform import _grasp_drawings
+    from picking_bringup.plots import plot_platform
+    from picking_core.platform import Coordinator, Platform
     platform = Platform.from_yaml(platform_path(), 'two')
     coordinator = Coordinator.from_platform(platform, shipped_harvest)
     tree = platform.tree(6, seed=1)
