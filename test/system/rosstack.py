@@ -7,6 +7,7 @@ run's ROS_DOMAIN_ID (set in conftest.py), and is stopped by its process id.
 from __future__ import annotations
 
 import os
+import queue
 import threading
 import time
 from contextlib import contextmanager
@@ -26,10 +27,10 @@ from trajectory_msgs.msg import JointTrajectory
 
 from picking_bringup import stack as launcher
 from picking_bringup.stack import NodeProcess, stop_all  # noqa: F401  (the tests stop processes with it)
-from picking_core.kinematics import ArmModel
-from picking_description import default_urdf
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import LatestMessage
+from picking_core.kinematics import ArmModel
+from picking_description import default_urdf
 
 BIN = launcher.BIN
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -55,14 +56,15 @@ Process = NodeProcess
 
 
 class Stack(launcher.Stack):
-    """The arm as ``picking-stack`` brings it up, at the home pose, with the planner's own file only
-    (the tests' goals assume its speed scale), and per-node extra arguments by keyword."""
+    """The arm as ``picking-stack`` brings it up, at the home pose, with the planner's own file only and half its
+    speed (the tests' goals and timeouts assume it), and per-node extra arguments by keyword."""
 
-    def __init__(self, ns, log_dir, sim_args=(), controller_args=(), planner_args=()):
-        super().__init__(ns, log_dir, files={'picking-planner': ('planner.yaml',)}, args={
+    def __init__(self, ns, log_dir, sim_args=(), controller_args=(), planner_args=(), foxglove=None):
+        super().__init__(ns, log_dir, foxglove=foxglove, files={'picking-planner': ('planner.yaml',)}, args={
             'picking-sim': ['-p', 'initial_positions:=[' + ','.join(str(v) for v in HOME + [0.09]) + ']',
                             *sim_args],
-            'picking-controller': list(controller_args), 'picking-planner': list(planner_args)})
+            'picking-controller': list(controller_args),
+            'picking-planner': ['-p', 'speed_scale:=0.5', *planner_args]})
 
     def restart_sim(self):
         self.start('picking-sim')
@@ -96,6 +98,7 @@ class Client(Node):
         self._exec = SingleThreadedExecutor()
         self._exec.add_node(self)
         self._closing = threading.Event()
+        self._retiring = queue.Queue()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
@@ -104,6 +107,21 @@ class Client(Node):
         # it spins races with a callback in flight ("cannot use Destroyable").
         while not self._closing.is_set():
             self._exec.spin_once(timeout_sec=0.05)
+            while not self._retiring.empty():
+                thing, done = self._retiring.get()
+                thing.destroy()
+                done.set()
+
+    def retire(self, thing):
+        """Destroy an action client or server, a subscription or a listener of this node between two
+        turns of its spin thread: destroyed while the executor waits on it, the thread dies ("action
+        client pointer is invalid") and the client hears nothing more."""
+        if not self._thread.is_alive():
+            thing.destroy()
+            return
+        done = threading.Event()
+        self._retiring.put((thing, done))
+        assert done.wait(10.0), 'the spin thread did not retire it'
 
     def watch_commands(self):
         """Record joint_commands too (1 kHz: only the tests that need it pay for it)."""

@@ -13,19 +13,19 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from rosstack import FINAL, final_answer, make_pose, reach, running_stack
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
+from picking_bringup.shipped import shipped_harvest
+from picking_common.scene_msgs import cloud_message, scene_markers
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST, LATCHED
 from picking_core.collision import Scene
 from picking_core.collision.scene import rod
 from picking_core.harvest import synthetic_tree
-from picking_bringup.shipped import shipped_harvest
 from picking_description import scene_path
-from picking_common.scene_msgs import cloud_message, scene_markers
-from rosstack import FINAL, final_answer, make_pose, reach, running_stack
 
 #: An apple of the synthetic tree, approached along +x; a branch 8 cm in front of it and 6 cm below.
 APPLE = synthetic_tree(10, seed=1)[1]

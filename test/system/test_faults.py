@@ -11,9 +11,9 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
 from rclpy.action import ActionClient
+from rosstack import GOALS, KILLED, make_pose, reach, running_stack
 
 from picking_common.status import status_values
-from rosstack import GOALS, KILLED, make_pose, reach, running_stack
 
 pytestmark = pytest.mark.load
 
@@ -61,7 +61,7 @@ def test_a_controller_paused_mid_motion_goes_on_later_and_the_goal_succeeds(tmp_
         assert held(client)
         log = stack.controller.output()
         assert 'goes on' in log and 'command limited' not in log and 'tolerance violated' not in log
-        action.destroy()
+        client.retire(action)
 
 
 def test_a_planner_killed_mid_cycle_leaves_the_arm_held_and_a_restarted_one_carries_on(tmp_path):
@@ -70,7 +70,7 @@ def test_a_planner_killed_mid_cycle_leaves_the_arm_held_and_a_restarted_one_carr
     with running_stack('/flt2', tmp_path) as (stack, client):
         mark = client.mark()
         action, handle = start_goal(client, Pick, 'pick', Pick.Goal(target=stamped([0.55, 0.15, 0.35])))
-        action.destroy()
+        client.retire(action)
         stack.planner.proc.kill()
         stack.planner.proc.wait()
         reached = client.controller_event(mark, 'goal reached', 60.0)
@@ -96,4 +96,4 @@ def test_a_simulator_killed_mid_motion_aborts_the_goal_with_the_reason_and_the_c
         client.controller_event(mark, 'feedback lost', 10.0)
         stack.restart_sim()                              # the nodes then stop cleanly, each with 0
         client.controller_event(mark, 'feedback restored', 30.0)
-        action.destroy()
+        client.retire(action)

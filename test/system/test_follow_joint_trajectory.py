@@ -11,9 +11,9 @@ from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
 from rclpy.action import ActionClient
 from rclpy.duration import Duration as Span
+from rosstack import ARM_JOINTS, HOME, goal_result, largest_step, running_stack
+from rosstack import send_goal as send
 from trajectory_msgs.msg import JointTrajectoryPoint
-
-from rosstack import ARM_JOINTS, HOME, goal_result, largest_step, running_stack, send_goal as send
 
 Result = FollowJointTrajectory.Result
 
@@ -24,7 +24,7 @@ def arm(tmp_path_factory):
         action = ActionClient(client, FollowJointTrajectory, 'follow_joint_trajectory')
         assert action.wait_for_server(timeout_sec=20.0), 'no follow_joint_trajectory server'
         yield client, action
-        action.destroy()
+        client.retire(action)
 
 
 def goal(offsets, seconds, names=ARM_JOINTS, **extra):

@@ -6,8 +6,9 @@ from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
 from rclpy.action import ActionClient
-
-from rosstack import goal_result as result, make_pose, running_stack, send_goal as send, settles_at
+from rosstack import goal_result as result
+from rosstack import make_pose, running_stack, settles_at
+from rosstack import send_goal as send
 
 APPLE = [0.55, 0.15, 0.35]
 
@@ -20,7 +21,7 @@ def arm(tmp_path_factory):
             assert action.wait_for_server(timeout_sec=20.0), f'no {name} server'
         yield client, actions
         for action in actions.values():
-            action.destroy()
+            client.retire(action)
 
 
 def stamped(xyz):

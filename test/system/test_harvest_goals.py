@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import yaml
 from geometry_msgs.msg import PoseArray
+from rosstack import ARM, BURST, RELIABLE, Client, ensure_rclpy, make_pose
 from trajectory_msgs.msg import JointTrajectory
 
+from picking_bringup.shipped import config_dir
 from picking_common.status import stamp_key, status_values
 from picking_core.harvest import synthetic_tree
-from picking_bringup.shipped import config_dir
 from picking_core.pick_cycle import PickSettings
-from rosstack import ARM, BURST, RELIABLE, Client, ensure_rclpy, make_pose
 
 NS = '/harvest'
 FINAL = ('succeeded', 'refused', 'aborted', 'superseded', 'canceled')

@@ -11,15 +11,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosstack import RELIABLE, ensure_rclpy
 from sensor_msgs.msg import JointState
 
+from picking_bringup.shipped import shipped_harvest
 from picking_common.joint_state import reorder
 from picking_common.run import BackgroundSpin
 from picking_core.kinematics.capsules import ArmCapsules, capsule_distances
-from picking_bringup.shipped import shipped_harvest
 from picking_core.platform import CLEARANCE, Coordinator, Platform
 from picking_description import platform_path
-from rosstack import RELIABLE, ensure_rclpy
 
 NS = '/platform'
 BIN = Path(sys.executable).parent
@@ -75,7 +75,7 @@ def test_two_arms_harvest_a_tree_and_never_come_within_the_clearance(platform):
     out = done.stdout
     assert done.returncode == 0, out + done.stderr
     assert re.search(r'tree succeeded: 8 of 8 apples picked', out), out
-    picked = {int(m) for m in re.findall(r'arm\d: apple (\d+) in the box', out)}
+    picked = {int(m) for m in re.findall(r'arm\d: apple (\d+) delivered', out)}
     assert picked == set(range(8)), out
     # Both arms took part, each from its own namespace.
     assert 'arm1: sent' in out and 'arm2: sent' in out, out
@@ -83,3 +83,29 @@ def test_two_arms_harvest_a_tree_and_never_come_within_the_clearance(platform):
     assert witness.closest >= CLEARANCE, f'the arms came within {witness.closest:.3f} m'
     measured = float(re.search(r'measured (-?[\d.]+) cm', out).group(1)) / 100
     assert measured >= CLEARANCE
+
+
+def test_tf_from_every_arm_is_each_arms_fk_in_the_platform_frame(platform):
+    """Each arm's links on /tf under its prefix, its base in the platform frame where the platform file puts it: the
+    tool of every arm, looked up from the platform frame, is that arm's mount times its FK of its joint states."""
+    import rclpy
+
+    from picking_common.tf import FrameListener
+    node = rclpy.create_node(f'platform_frames_{os.getpid()}')
+    p = Platform.from_yaml(platform_path(), 'two')
+    arms = [h.arm for h in Coordinator.from_platform(p, shipped_harvest).harvests]
+    states = {}
+    for k, m in enumerate(p.arms):
+        node.create_subscription(JointState, f'{NS}/{m.namespace}/joint_states',
+                                 lambda msg, k=k: states.__setitem__(k, msg), RELIABLE)
+    frames = FrameListener(node, prefer='picking_core')
+    spinner = BackgroundSpin(node)
+    try:
+        for k, m in enumerate(p.arms):
+            T = frames.transform(p.frame, f'{NS.strip("/")}/{m.namespace}/tool0', 0.0, 10.0)
+            q = reorder(states[k].name, states[k].position, arms[k].joint_names, 'joint_states')
+            assert np.abs(T[:3, 3] - (m.base @ arms[k].fk(q))[:3, 3]).max() < 1e-4, m.namespace
+    finally:
+        spinner.stop()
+        frames.destroy()
+        node.destroy_node()

@@ -6,16 +6,14 @@ import signal
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
-
 from control_msgs.action import FollowJointTrajectory
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.action import ActionServer
 from rclpy.task import Future
+from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
 
 from picking_common.status import stamp_key, status_values
 from picking_core.goals.lifecycle import RESULT_MARGIN
-
-from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
 
 
 def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
@@ -64,9 +62,9 @@ def test_nodes_exit_cleanly_on_sigterm(tmp_path):
     try:
         client.wait_ready()
     finally:
-        codes = {p.name: p.stop(signal.SIGTERM) for p in (stack.planner, stack.controller, stack.sim)}
+        codes = {p.name: p.stop(signal.SIGTERM) for p in stack.nodes.values()}
         client.close()
-    for proc in (stack.planner, stack.controller, stack.sim):
+    for proc in stack.nodes.values():
         assert codes[proc.name] == 0, proc.output()
         assert 'Traceback' not in proc.output()
 
@@ -154,7 +152,7 @@ def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ah
         # (No controller reference here: each plan starts from the measured state, stamped 0, "now".)
         time.sleep(0.5)
         assert len(controller.plans) == 4                        # not planned a fourth time
-        controller.server.destroy()
+        client.retire(controller.server)
 
 
 def test_a_plan_the_controller_never_answers_ends_aborted_with_the_reason(tmp_path):
@@ -171,7 +169,7 @@ def test_a_plan_the_controller_never_answers_ends_aborted_with_the_reason(tmp_pa
         aborted = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
                                   bound, f'the goal to end within {bound:.1f} s')[0]
         assert status_values(aborted)['state'] == 'aborted' and 'no result from the controller' in aborted.message
-        controller.server.destroy()
+        client.retire(controller.server)
 
 
 def test_a_node_asked_with_sigusr1_writes_every_threads_stack_and_runs_on(tmp_path):

@@ -13,16 +13,18 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterType
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-
-from picking_controller.parameters import PARAMS as CONTROLLER
-from picking_planner.parameters import PARAMS as PLANNER
-from picking_core.pick_cycle import PickSettings
-from picking_bringup.shipped import config_dir
-from picking_common.status import status_values
-from picking_sim.parameters import PARAMS as SIM
 from rosstack import FINAL, RELIABLE, Client, ensure_rclpy, make_pose
 
-NODES = {'picking_sim': SIM, 'picking_controller': CONTROLLER, 'picking_planner': PLANNER}
+from picking_bringup.shipped import config_dir
+from picking_common.status import status_values
+from picking_controller.parameters import PARAMS as CONTROLLER
+from picking_core.pick_cycle import PickSettings
+from picking_planner.parameters import PARAMS as PLANNER
+from picking_sim.parameters import PARAMS as SIM
+from picking_sim.parameters import STATE_PUBLISHER
+
+NODES = {'picking_sim': SIM, 'picking_controller': CONTROLLER, 'picking_planner': PLANNER,
+         'picking_state_publisher': STATE_PUBLISHER}
 NS = '/conventions'
 
 
@@ -147,7 +149,7 @@ def test_the_graph_shows_who_reads_what(arm):
     assert f'{NS}/joint_commands' in subs['picking_sim']
     assert f'{NS}/joint_states' in subs['picking_controller']
     assert {f'{NS}/joint_states', f'{NS}/joint_commands'} <= subs['picking_planner']
-    # No helper nodes beside the three (and this test's client).
+    # No helper nodes beside the stack's four (and this test's client).
     names = [n for n, ns in client.get_node_names_and_namespaces() if ns == NS]
     assert sorted(n for n in names if not n.startswith('test_client')) == sorted(NODES), names
 
