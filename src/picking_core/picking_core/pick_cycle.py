@@ -19,7 +19,7 @@ so grasp and release reach every subscriber of ``joint_states`` with their times
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -213,6 +213,29 @@ def _offset(T, local):
     return out
 
 
+
+@dataclass
+class _Draft:
+    """A cycle being planned: its knot poses and joints (P1 and P4 where the blends meet the lines), the
+    detours asked for, and the parts planned so far with their Cartesian paths."""
+
+    poses: dict
+    q: dict
+    home: np.ndarray
+    detours: dict
+    q1: np.ndarray
+    q4: np.ndarray
+    q_apple: np.ndarray = None
+    q_top: np.ndarray = None
+    q_box: np.ndarray = None
+    parts: list = field(default_factory=list)
+    cart: list = field(default_factory=list)
+
+    def add(self, label, method, traj, path=None):
+        self.parts.append((label, method, traj))
+        if path is not None:
+            self.cart.append((len(self.parts) - 1, path))
+
 class PickCycle:
     """Plans Table 1 for one apple with a :class:`~picking_core.planning.Planner`; with a
     :class:`~picking_core.collision.CollisionChecker`, only cycles clear of its obstacles."""
@@ -260,19 +283,29 @@ class PickCycle:
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
-        than the one nearest home)."""
-        pl, s, arm = self.planner, self.s, self.arm
-        detours = detours or {}
-        start = pl.check_start(start)
-        if s.blend and (pl.settings.cartesian_profile != 'optimal' or pl.settings.duration):
+        than the one nearest home). The steps of Table 1 in order."""
+        start = self.planner.check_start(start)
+        if self.s.blend and (self.planner.settings.cartesian_profile != 'optimal' or self.planner.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
                              'entered and left at speed)')
-        joint_method = s.approach_method
+        d = self._knots(T_apple, branch, detours or {})
+        rise_line = self._leave_start(d, start, from_box)
+        self._reach_apple(d, rise_line)
+        d.add('grasp', 'dwell', trajectory.hold(d.q_apple, self._gripper_time(self.s.grasp_time)))
+        self._carry_to_box(d)
+        d.add('release', 'dwell', trajectory.hold(d.q_box, self._gripper_time(self.s.release_time)))
+        if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
+            for part in self._home_from_box((d.q_box, 0.0 * d.q_box, 0.0 * d.q_box), d.detours.get('P0 back home')):
+                d.add(*part)
+        return self._with_gripper(d.parts, d.cart, gripper_start)
+
+    def _knots(self, T_apple, branch, detours):
+        """Step C first: the knot poses P1-P5 and their joints, every one reachable before anything moves (P4
+        and P5 may turn about the vertical with ``place_yaw_free``); the blend points near P1 and P4."""
+        s, arm = self.s, self.arm
         poses = self.key_poses(T_apple)
         home = np.asarray(s.home_positions, float)
-        # Step C first: every knot point must be reachable before anything moves.
-        q = {}
-        seed = home
+        q, seed = {}, home
         for name in ('P1', 'P2', 'P3', 'P4', 'P5'):
             try:
                 q[name] = arm.check_reachable(poses[name], seed=seed)
@@ -285,92 +318,100 @@ class PickCycle:
             q['P1'] = arm.check_joints(branch, 'branch')
         if s.place_yaw_free:
             poses, q['P4'], q['P5'] = self.quickest_place(poses, q['P3'], home)
-        parts, cart = [], []
-
-        def add(label, method, traj, path=None):
-            parts.append((label, method, traj))
-            if path is not None:
-                cart.append((len(parts) - 1, path))
-
-        if from_box:
-            _, _, rise_line = self._out_of_the_box(start)
-        else:
-            stop, q_rest = pl.come_to_rest(start)
-            if stop is not None:
-                add('brake', 'quintic', stop)
-            if 'P0 home' in detours:
-                add('P0 home', s.transfer_method, self._detour([q_rest, *detours['P0 home'], home], None, None))
-            elif np.abs(q_rest - home).max() > 1e-4:
-                add('P0 home', joint_method, pl.joint_move(q_rest, home, joint_method))
-        speeds = BLEND_SPEEDS if s.blend else (0.0,)
-
-        def blend_state(traj, at_end):
-            """``(velocity, acceleration)`` where a blend meets ``traj`` (its end or start); None without."""
-            if not s.blend:
-                return None
-            return (traj.end_state() if at_end else traj.start_state())[1:]
-
-        def approach(line, rise=None):
-            """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple."""
-            vf, af = blend_state(line, False) or (None, None)
-            q0 = home if rise is None else rise.end_state()[0]
-            v0, a0 = (None, None) if rise is None else (blend_state(rise, True) or (None, None))
-            if 'P1 approach' in detours:
-                return self._detour([q0, *detours['P1 approach'], line.start_state()[0]],
-                                    None if v0 is None else (v0, a0), None if vf is None else (vf, af))
-            return pl.joint_move(q0, line.start_state()[0], joint_method, v0=v0, a0=a0, vf=vf, af=af)
-
-        def transfer(lift, into_box=None):
-            """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
-            q_lift = lift.end_state()[0]
-            q_box = q4 if into_box is None else into_box.start_state()[0]
-            # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
-            corner = q_lift if q_top is None else q_top
-            through = detours.get('P4 above the box', [self._clearance(corner, q['P4'])])
-            return pl.via(np.array([q_lift, *through, q_box]), s.transfer_method,
-                          blend_state(lift, True), None if into_box is None else blend_state(into_box, False))
-
         # With blend radii the joint moves meet the lines that far from P1, P3 and P4: the
         # lines are that much shorter, and the corners are rounded by the joint moves.
         r, r_box = s.blend_radius, s.box_blend_radius
         q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
         q4 = q['P4'] if r_box == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r_box, q['P4'],
                                                           'box_blend_radius')
-        # P1: the approach ends where (and as fast as) the line to the apple starts.
-        to_apple = lambda f, rest: pl.line(q1, arm.fk(q1), poses['P2'], (f, 0.0), rest)  # noqa: E731
+        return _Draft(poses, q, home, detours, q1, q4)
+
+    @property
+    def _speeds(self):
+        """The speeds tried where a joint move meets a line (at rest only, without blends)."""
+        return BLEND_SPEEDS if self.s.blend else (0.0,)
+
+    def _blend_state(self, traj, at_end):
+        """``(velocity, acceleration)`` where a blend meets ``traj`` (its end or start); None without."""
+        if not self.s.blend:
+            return None
+        return (traj.end_state() if at_end else traj.start_state())[1:]
+
+    def _leave_start(self, d, start, from_box):
+        """From the start: brake to rest and go home (P0), or, from the box, the line out of it (returned as a
+        function of its speed at the top, planned with the approach that follows it)."""
+        pl, s = self.planner, self.s
         if from_box:
+            return self._out_of_the_box(start)[2]
+        stop, q_rest = pl.come_to_rest(start)
+        if stop is not None:
+            d.add('brake', 'quintic', stop)
+        if 'P0 home' in d.detours:
+            d.add('P0 home', s.transfer_method, self._detour([q_rest, *d.detours['P0 home'], d.home], None, None))
+        elif np.abs(q_rest - d.home).max() > 1e-4:
+            d.add('P0 home', s.approach_method, pl.joint_move(q_rest, d.home, s.approach_method))
+        return None
+
+    def _approach(self, d, line, rise=None):
+        """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple (P1), arriving
+        as fast as the line starts."""
+        vf, af = self._blend_state(line, False) or (None, None)
+        q0 = d.home if rise is None else rise.end_state()[0]
+        v0, a0 = (None, None) if rise is None else (self._blend_state(rise, True) or (None, None))
+        if 'P1 approach' in d.detours:
+            return self._detour([q0, *d.detours['P1 approach'], line.start_state()[0]],
+                                None if v0 is None else (v0, a0), None if vf is None else (vf, af))
+        return self.planner.joint_move(q0, line.start_state()[0], self.s.approach_method, v0=v0, a0=a0, vf=vf, af=af)
+
+    def _reach_apple(self, d, rise_line):
+        """P1 approach and P2, the straight line to the apple (after the line out of the box, from the box)."""
+        pl, arm = self.planner, self.arm
+
+        def to_apple(speed, rest):
+            return pl.line(d.q1, arm.fk(d.q1), d.poses['P2'], (speed, 0.0), rest)
+        if rise_line is not None:
             # The line to the apple as for an approach from the top of the box at rest; then the
             # speed out of the box for that line.
             at_rest = rise_line(0.0, None)[0]
-            _, (traj, path) = self._quickest(speeds, to_apple, lambda line: approach(line, at_rest))
-            moved, (rise, rise_path) = self._quickest(speeds, rise_line, lambda r: approach(traj, r))
-            add('P4 out of the box', 'line', rise, rise_path)
+            _, (line, path) = self._quickest(self._speeds, to_apple, lambda ln: self._approach(d, ln, at_rest))
+            moved, (rise, rise_path) = self._quickest(self._speeds, rise_line, lambda r: self._approach(d, line, r))
+            d.add('P4 out of the box', 'line', rise, rise_path)
         else:
-            moved, (traj, path) = self._quickest(speeds, to_apple, approach)
-        add('P1 approach', joint_method, moved)
-        add('P2 to the apple', 'line', traj, path)
-        q_apple = traj.end_state()[0]
-        q_top = None if r == 0.0 else self._top(q_apple, poses)     # the corner at P3 (the lift's end without r)
-        add('grasp', 'dwell', trajectory.hold(q_apple, self._gripper_time(s.grasp_time)))
-        # P3: the lift flows into the transfer (stopping at P4 for this choice; without blends there is no
+            moved, (line, path) = self._quickest(self._speeds, to_apple, lambda ln: self._approach(d, ln))
+        d.add('P1 approach', self.s.approach_method, moved)
+        d.add('P2 to the apple', 'line', line, path)
+        d.q_apple = line.end_state()[0]
+
+    def _transfer(self, d, lift, into_box=None):
+        """The end of the lift -> clearance -> P4 (the start of the line into the box, once planned)."""
+        q_lift = lift.end_state()[0]
+        q_box = d.q4 if into_box is None else into_box.start_state()[0]
+        # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
+        corner = q_lift if d.q_top is None else d.q_top
+        through = d.detours.get('P4 above the box', [self._clearance(corner, d.q['P4'])])
+        return self.planner.via(np.array([q_lift, *through, q_box]), self.s.transfer_method,
+                                self._blend_state(lift, True),
+                                None if into_box is None else self._blend_state(into_box, False))
+
+    def _carry_to_box(self, d):
+        """P3, the lift that detaches the apple, flowing into the transfer to P4, and P5, the line into the box."""
+        s, pl, arm = self.s, self.planner, self.arm
+        d.q_top = None if s.blend_radius == 0.0 else self._top(d.q_apple, d.poses)  # the corner at P3
+        # The lift flows into the transfer (stopping at P4 for this choice; without blends there is no
         # choice to make, and the transfer is planned once, below) ...
         if s.blend:
-            _, (lift, path) = self._quickest(speeds, lambda f, rest: self._lift(q_apple, poses, f, rest), transfer)
+            _, (lift, path) = self._quickest(self._speeds, lambda f, rest: self._lift(d.q_apple, d.poses, f, rest),
+                                             lambda ln: self._transfer(d, ln))
         else:
-            lift, path = self._lift(q_apple, poses, 0.0)
-        add('P3 lift and detach', s.lift_method, lift, path)
+            lift, path = self._lift(d.q_apple, d.poses, 0.0)
+        d.add('P3 lift and detach', s.lift_method, lift, path)
         # ... and the transfer into the line into the box.
-        moved, (traj, path) = self._quickest(
-            speeds, lambda f, rest: pl.line(q4, arm.fk(q4), poses['P5'], (f, 0.0), rest),
-            lambda line: transfer(lift, line))
-        add('P4 above the box', s.transfer_method, moved)
-        add('P5 into the box', 'line', traj, path)
-        q_box = traj.end_state()[0]
-        add('release', 'dwell', trajectory.hold(q_box, self._gripper_time(s.release_time)))
-        if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
-            for part in self._home_from_box((q_box, 0.0 * q_box, 0.0 * q_box), detours.get('P0 back home')):
-                add(*part)
-        return self._with_gripper(parts, cart, gripper_start)
+        moved, (line, path) = self._quickest(
+            self._speeds, lambda f, rest: pl.line(d.q4, arm.fk(d.q4), d.poses['P5'], (f, 0.0), rest),
+            lambda ln: self._transfer(d, lift, ln))
+        d.add('P4 above the box', s.transfer_method, moved)
+        d.add('P5 into the box', 'line', line, path)
+        d.q_box = line.end_state()[0]
 
     def _detour(self, qs, start, end):
         """A joint move through the waypoints ``qs``, timed with the transfer's via-point method (from
