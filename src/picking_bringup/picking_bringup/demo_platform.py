@@ -49,6 +49,7 @@ def run_platform_scenario(config, out, demo):
     spinner = BackgroundSpin(node)
     done = None
     try:
+        log(f'waiting for the {len(names)} arms and the coordinator to come up')
         stack.wait_ready()
         t0 = time.monotonic()
         done = run_tool([BIN / 'picking-goal', 'tree', '--tree', n, '--seed', seed, '--platform', platform_path(),

@@ -152,6 +152,7 @@ def compare_methods(arm, planner_params, apple_T):
         _, _, qdd = plan.trajectory.sample(t)
         rows.append((label, f'{plan.duration:.2f}', f'{np.abs(qdd[:, :arm.dof]).max():.2f}',
                      f'{peak_jerk(t, qdd[:, :arm.dof]).max():.0f}'))
+        log(f'  {label}: cycle {plan.duration:.2f} s')
         plans[label] = plan
     return rows, plans
 
@@ -277,6 +278,7 @@ def analyse_and_report(rec, events, config, out, quick=False):
                   'corner, side on).']
     if 'arc' in events:
         lines += arc_section(rec, events['arc'], arm, names)
+    log('plotting and writing the report')
     harvest_plot = None
     if 'harvest' in events:
         section, harvest_plot, harvest_checks = harvest_section(rec, events['harvest'], arm, out)
