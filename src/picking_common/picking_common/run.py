@@ -30,22 +30,12 @@ def run_node(make_node, args=None, help=None):
     shutdown (an RCLError from a wait set, or a spin that never wakes), so the
     signals only set a flag here and the main thread spins in short slices.
     """
-    from rclpy._rclpy_pybind11 import RCLError, RCLInvalidROSArgsError
-    from rclpy.utilities import remove_ros_args
+    from rclpy._rclpy_pybind11 import RCLError
     argv = sys.argv if args is None else args
     prog = os.path.basename(argv[0]) if argv else 'node'
-    try:
-        own = remove_ros_args(argv)[1:]
-    except RCLInvalidROSArgsError as exc:
-        print(f'{prog}: error: {str(exc).split(", at ")[0]}', file=sys.stderr)
-        return 2
-    if help is not None and ('-h' in own or '--help' in own):
-        print(help)
-        return 0
-    if own:
-        print(f'{help.splitlines()[0] if help else prog}\n{prog}: error: unrecognized arguments: {" ".join(own)} '
-              '(a node takes only ROS arguments, after --ros-args)', file=sys.stderr)
-        return 2
+    refused = _own_arguments(argv, prog, help)
+    if refused is not None:
+        return refused
     stop = threading.Event()
 
     def on_signal(signum, frame):
@@ -60,12 +50,7 @@ def run_node(make_node, args=None, help=None):
         print(f'{prog}: ROS could not start: {exc}{_security_hint()}', file=sys.stderr)
         return 1
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    # A node that does not stop: `kill -USR1 <pid>` writes every thread's Python stack to
-    # stderr (from C, even while a thread holds the GIL or waits in the middleware), and a
-    # crash writes its stack too.
-    faulthandler.enable()
-    if hasattr(signal, 'SIGUSR1'):
-        faulthandler.register(signal.SIGUSR1, all_threads=True)
+    _stacks_on_request()
     node = executor = None
     try:
         # Everything loaded so far lives as long as the process: keep it out of the
@@ -93,21 +78,54 @@ def run_node(make_node, args=None, help=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        # A node that does not finish stopping within STOP_LIMIT writes every thread's stack and exits 1
-        # (from C: even a thread stuck holding the GIL in the middleware cannot hold the process up).
-        faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
-        if node is not None:
-            close = getattr(node, 'close', None)
-            if close:
-                close()
-        if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _teardown(node, executor)
         for sig, handler in old.items():
             signal.signal(sig, handler)
     return 0
+
+
+def _stacks_on_request():
+    """A node that does not stop: `kill -USR1 <pid>` writes every thread's Python stack to stderr (from C, even
+    while a thread holds the GIL or waits in the middleware), and a crash writes its stack too."""
+    faulthandler.enable()
+    if hasattr(signal, 'SIGUSR1'):
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
+
+
+def _teardown(node, executor):
+    """Close the node (its own ``close`` first: loops, threads), the executor, then rclpy. A node that does not
+    finish within STOP_LIMIT writes every thread's stack and exits 1 (from C: even a thread stuck holding the GIL
+    in the middleware cannot hold the process up)."""
+    faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
+    if node is not None:
+        close = getattr(node, 'close', None)
+        if close:
+            close()
+    if executor is not None:
+        executor.shutdown(timeout_sec=1.0)
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _own_arguments(argv, prog, help):
+    """The exit code for arguments a node does not run with (None when it takes them all): 0 after printing
+    ``help`` for ``-h``/``--help`` before the ROS arguments, 2 naming a bad ROS argument or one of its own."""
+    from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
+    from rclpy.utilities import remove_ros_args
+    try:
+        own = remove_ros_args(argv)[1:]
+    except RCLInvalidROSArgsError as exc:
+        print(f'{prog}: error: {str(exc).split(", at ")[0]}', file=sys.stderr)
+        return 2
+    if help is not None and ('-h' in own or '--help' in own):
+        print(help)
+        return 0
+    if own:
+        print(f'{help.splitlines()[0] if help else prog}\n{prog}: error: unrecognized arguments: {" ".join(own)} '
+              '(a node takes only ROS arguments, after --ros-args)', file=sys.stderr)
+        return 2
+    return None
 
 
 def _security_hint():
