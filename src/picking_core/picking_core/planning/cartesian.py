@@ -25,6 +25,27 @@ class CartesianMoves:
         rest-to-rest path, if already timed (else timed here first).
         """
         s = self.settings
+        shape, T, limits, moving = self._progress_timing(curve, q0, orientations, keys, ends, rest)
+        if shape is None:
+            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations,
+                                                keys=keys, limits=limits)
+        else:
+            path = geometry.CartesianPath(curve, shape.stretched(T / shape.duration), orientations, keys)
+        jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
+                                check_limits=False, free_ends=moving)
+        over = max(float(np.max(jp.peak_velocity / self._vmax)),
+                   float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
+        if s.limit_jerk:
+            over = max(over, self._jerk_ratio(jp.trajectory, np.linspace(0.0, T, max(50, int(T / 0.0025))))
+                       ** (1.0 / 3.0))
+        return self._stretched_within_limits(jp, path, over)
+
+    def _progress_timing(self, curve, q0, orientations, keys, ends, rest):
+        """How progress along ``curve`` is first timed: ``(shape, duration, limits, moving)``, ``shape`` the
+        time-optimal progress profile for ends at speed (None from rest to rest: a profile of the settings),
+        ``limits`` the progress's speed, acceleration and jerk limits (1/s^k; ``optimal`` profile only),
+        ``moving`` whether each end is at speed."""
+        s = self.settings
         length = curve.length
         limits = None
         if s.cartesian_profile == 'optimal':
@@ -36,43 +57,34 @@ class CartesianMoves:
         else:
             guess = max(1.875 * length / s.cartesian_speed, np.sqrt(5.78 * length / s.cartesian_accel), 0.2)
         moving = tuple(float(f) > 0.0 for f in ends)
-        if any(moving):
-            if s.cartesian_profile != 'optimal' or s.duration:
-                raise ValueError('a line or arc entered or left at speed needs cartesian_profile optimal and no '
-                                 'fixed duration')
-            if not all(0.0 <= float(f) < 1.0 for f in ends):
-                raise ValueError(f'end speeds must be fractions in [0, 1), got {list(ends)}')
-            # The rest-to-rest timing gives the progress limits that keep the joints' (its
-            # profile stretched k times is the time-optimal one within limits / k, / k^2, / k^3).
-            if rest is None:
-                _, rest = self._timed_cartesian(curve, q0, orientations, keys)
-            k = rest.duration / geometry.optimal_progress(limits).duration
-            limits = limits / np.array([k, k * k, k ** 3])
-            shape = trajectory.time_optimal([0.0], [1.0], *limits, v0=[ends[0] * limits[0]],
-                                            vf=[ends[1] * limits[0]])
-            if shape.sample(np.linspace(0.0, shape.duration, 200))[1].min() < -1e-9:
-                raise Unreachable(f'entered at {ends[0]:.0%} of its speed the path overshoots its end')
-            T = shape.duration
-        else:
-            shape = None
-            T = s.duration or guess
-        if shape is None:
-            path = geometry.CartesianPath.timed(curve, T, s.cartesian_profile, orientations=orientations,
-                                                keys=keys, limits=limits)
-        else:
-            path = geometry.CartesianPath(curve, shape.stretched(T / shape.duration), orientations, keys)
-        jp = cartesian_to_joint(self.arm, path, q0, dt=s.sample_period, max_joint_step=s.max_joint_step,
-                                check_limits=False, free_ends=moving)
+        if not any(moving):
+            return None, s.duration or guess, limits, moving
+        if s.cartesian_profile != 'optimal' or s.duration:
+            raise ValueError('a line or arc entered or left at speed needs cartesian_profile optimal and no '
+                             'fixed duration')
+        if not all(0.0 <= float(f) < 1.0 for f in ends):
+            raise ValueError(f'end speeds must be fractions in [0, 1), got {list(ends)}')
+        # The rest-to-rest timing gives the progress limits that keep the joints' (its
+        # profile stretched k times is the time-optimal one within limits / k, / k^2, / k^3).
+        if rest is None:
+            _, rest = self._timed_cartesian(curve, q0, orientations, keys)
+        k = rest.duration / geometry.optimal_progress(limits).duration
+        limits = limits / np.array([k, k * k, k ** 3])
+        shape = trajectory.time_optimal([0.0], [1.0], *limits, v0=[ends[0] * limits[0]], vf=[ends[1] * limits[0]])
+        if shape.sample(np.linspace(0.0, shape.duration, 200))[1].min() < -1e-9:
+            raise Unreachable(f'entered at {ends[0]:.0%} of its speed the path overshoots its end')
+        return shape, shape.duration, limits, moving
+
+    def _stretched_within_limits(self, jp, path, over):
+        """The joint path ``jp`` of ``path`` slowed until its peaks are ``over`` <= 1 of the limits: ``(traj, path)``.
+
+        Slowed down by k, the tool passes the same poses, so the joints pass the same
+        configurations: the joint path is this one stretched in time, its speeds divided by
+        k, accelerations by k^2, jerks by k^3 (the spline through the IK samples stretches
+        with them). The IK is solved once; its samples end up k * sample_period apart, and
+        the points the conversion checked are checked again, stretched the same way."""
+        s = self.settings
         traj = jp.trajectory
-        over = max(float(np.max(jp.peak_velocity / self._vmax)),
-                   float(np.sqrt(np.max(jp.peak_acceleration / self._amax))))
-        if s.limit_jerk:
-            over = max(over, self._jerk_ratio(traj, np.linspace(0.0, T, max(50, int(T / 0.0025)))) ** (1.0 / 3.0))
-        # Slowed down by k, the tool passes the same poses, so the joints pass the same
-        # configurations: the joint path is this one stretched in time, its speeds divided by
-        # k, accelerations by k^2, jerks by k^3 (the spline through the IK samples stretches
-        # with them). The IK is solved once; its samples end up k * sample_period apart, and
-        # the points the conversion checked are checked again, stretched the same way.
         t_check, q_check, qd_check, qdd_check = jp.checked
         stretch = 1.0
         for _ in range(6):

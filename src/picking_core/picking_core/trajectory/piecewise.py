@@ -169,33 +169,9 @@ class PiecewisePolynomial:
             _eval_block(t, breaks[0], breaks[-1], breaks[0], None if shared else self._derivative_rows()[0], rows,
                         outside_any, shared)
         elif m > _GATHER_SEGMENTS and t.size <= _GATHER_SAMPLES:
-            # Many short segments (a spline through 10 ms samples): one gather and one
-            # batched product instead of a Python loop over the segments.
-            tc = np.clip(t, breaks[0], breaks[-1])
-            k = np.clip(np.searchsorted(breaks, tc, side='left') - 1, 0, m - 1)
-            tau = tc - breaks[k]
-            powers = np.empty((tc.size, _N_COEFFS))
-            powers[:, 0] = 1.0
-            for i in range(1, _N_COEFFS):
-                np.multiply(powers[:, i - 1], tau, out=powers[:, i])
-            rows = np.matmul(self._derivative_rows()[k], powers[:, :, None])[:, :, 0].T
+            rows = self._sample_gathered(t)
         else:
-            order, ts = None, t
-            if t.size > 1 and (t[1:] < t[:-1]).any():
-                order = np.argsort(t, kind='stable')
-                ts = t[order]
-            # Times before the start fall in the first segment, after the end in the last
-            # (each block clips them to the trajectory's ends).
-            edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
-            stacked = self._derivative_rows()
-            for k in np.flatnonzero(edges[1:] > edges[:-1]):
-                lo, hi = edges[k], edges[k + 1]
-                _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], stacked[k], rows, outside_any,
-                            _shared_profile(self._coeffs[k]) if hi - lo >= _SHARED_MIN else None, col=lo)
-            if order is not None:
-                unsorted = np.empty_like(rows)
-                unsorted[:, order] = rows
-                rows = unsorted
+            rows = self._sample_by_segment(t, rows, outside_any)
         out = rows.T
         q, qd, qdd = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
         if outside_any:
@@ -203,6 +179,40 @@ class PiecewisePolynomial:
             qd[outside] = 0.0
             qdd[outside] = 0.0
         return q, qd, qdd
+
+    def _sample_gathered(self, t):
+        """The (3n, N) rows at ``t`` for many short segments (a spline through 10 ms samples): one gather and
+        one batched product instead of a Python loop over the segments."""
+        breaks = self._breaks
+        tc = np.clip(t, breaks[0], breaks[-1])
+        k = np.clip(np.searchsorted(breaks, tc, side='left') - 1, 0, len(breaks) - 2)
+        tau = tc - breaks[k]
+        powers = np.empty((tc.size, _N_COEFFS))
+        powers[:, 0] = 1.0
+        for i in range(1, _N_COEFFS):
+            np.multiply(powers[:, i - 1], tau, out=powers[:, i])
+        return np.matmul(self._derivative_rows()[k], powers[:, :, None])[:, :, 0].T
+
+    def _sample_by_segment(self, t, rows, outside_any):
+        """``rows`` (3n, N) filled at ``t`` a segment at a time, over the times sorted (then put back in order)."""
+        breaks = self._breaks
+        order, ts = None, t
+        if t.size > 1 and (t[1:] < t[:-1]).any():
+            order = np.argsort(t, kind='stable')
+            ts = t[order]
+        # Times before the start fall in the first segment, after the end in the last
+        # (each block clips them to the trajectory's ends).
+        edges = np.concatenate(([0], np.searchsorted(ts, breaks[1:-1], side='right'), [ts.size]))
+        stacked = self._derivative_rows()
+        for k in np.flatnonzero(edges[1:] > edges[:-1]):
+            lo, hi = edges[k], edges[k + 1]
+            _eval_block(ts[lo:hi], breaks[0], breaks[-1], breaks[k], stacked[k], rows, outside_any,
+                        _shared_profile(self._coeffs[k]) if hi - lo >= _SHARED_MIN else None, col=lo)
+        if order is None:
+            return rows
+        unsorted = np.empty_like(rows)
+        unsorted[:, order] = rows
+        return unsorted
 
     def jerk(self, t):
         """Third derivative at times ``t``, shape (N, n_joints) (zero outside the trajectory).
