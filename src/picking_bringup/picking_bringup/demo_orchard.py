@@ -20,23 +20,11 @@ def run_orchard_scenario(config, out, demo):
     """Start one arm, give it the tree's scene and cloud, harvest twice, stop it; returns
     ``(report lines, files, checks)``."""
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticStatus
-    from geometry_msgs.msg import Pose, PoseArray
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
-    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-    from scipy.spatial.transform import Rotation
-    from sensor_msgs.msg import JointState, PointCloud2
-    from visualization_msgs.msg import MarkerArray
 
-    from picking_common.run import BackgroundSpin
     from picking_common.scene_msgs import cloud_message, scene_markers
-    from picking_common.topics import BURST, LATCHED
-    from picking_core.kinematics import ArmModel
-    from picking_description import default_urdf
 
-    from .plots import plot_orchard
-    from .recording import Recorder
     from .shipped import shipped_orchard
 
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
@@ -44,22 +32,70 @@ def run_orchard_scenario(config, out, demo):
     log(f'scenario 5, a tree among branches: {n} apples (seed {seed}), {len(orchard.scene)} obstacles in the scene, '
         f'{len(orchard.twigs)} twigs in a cloud of {len(orchard.cloud)} points; harvested with branch awareness, '
         'then with collision checking off')
-    ns = '/orchard'
-    stack = Stack(ns, out / 'logs', config=config)
-    rclpy.init()
-    node = rclpy.create_node(f'picking_demo_orchard_{os.getpid()}', namespace=ns)
-    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-    rec = Recorder(node, {f'{ns}/planner_status': DiagnosticStatus, f'{ns}/sim_contacts': DiagnosticStatus}, reliable)
-    rec.add(node, {f'{ns}/joint_states': JointState}, qos_profile_sensor_data)
-    rec.add(node, {f'{ns}/scene': MarkerArray}, LATCHED)
-    rec.add(node, {f'{ns}/canopy_points': PointCloud2}, reliable)
-    rec.add_frames(node, [ns])
-    scene_pub = node.create_publisher(MarkerArray, 'scene', LATCHED)
-    cloud_pub = node.create_publisher(PointCloud2, 'canopy_points', reliable)
-    harvest_pub = node.create_publisher(PoseArray, 'harvest_targets', BURST)
-    spinner = BackgroundSpin(node)
+    arm = _OrchardArm('/orchard', config, out)
+    runs, codes = {}, {}
+    try:
+        arm.stack.wait_ready()
+        arm.wait(lambda: arm.scene_pub.get_subscription_count() >= 2 and arm.cloud_pub.get_subscription_count() >= 1,
+                 20.0, 'the planner and the simulator on scene and canopy_points')
+        arm.scene_pub.publish(scene_markers(orchard.scene, 'base_link'))
+        planner, sim = arm.stack.planner, arm.stack.sim
+        arm.wait(lambda: 'canopy from canopy_points' in planner.output() and 'scene replaced' in planner.output()
+                 and 'from the scene topic' in sim.output(), 20.0, 'the scene and the cloud',
+                 (arm.cloud_pub, cloud_message(orchard.cloud, 'base_link')))
+        runs['branch-aware'] = arm.harvest('branch-aware', orchard.apples)
+        client = AsyncParameterClient(arm.node, 'picking_planner')
+        client.wait_for_services(timeout_sec=10.0)
+        done = client.set_parameters([Parameter('avoid_collisions', value=False)])
+        arm.wait(done.done, 10.0, 'avoid_collisions set to false')
+        runs['checking off'] = arm.harvest('checking off', orchard.apples)
+    except RuntimeError as exc:
+        log(f'FAILED: {exc}')
+    finally:
+        codes = arm.stack.stop()
+        for name, code in codes.items():
+            log(f'stopped {name}: exit code {code}')
+    arm.close()
+    rclpy.try_shutdown()
+    return orchard_report(arm.rec, arm.ns, runs, codes, orchard, n, seed, out, demo)
 
-    def wait(pred, timeout, what, publishing=None, progress=None):
+
+class _OrchardArm:
+    """The orchard's arm (a stack in ``ns``), this scenario's node on its topics, and what it records."""
+
+    def __init__(self, ns, config, out):
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from geometry_msgs.msg import PoseArray
+        from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+        from sensor_msgs.msg import JointState, PointCloud2
+        from visualization_msgs.msg import MarkerArray
+
+        from picking_common.run import BackgroundSpin
+        from picking_common.topics import BURST, LATCHED
+
+        from .recording import Recorder
+        self.ns = ns
+        self.stack = Stack(ns, out / 'logs', config=config)
+        rclpy.init()
+        self.node = rclpy.create_node(f'picking_demo_orchard_{os.getpid()}', namespace=ns)
+        reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        rec = self.rec = Recorder(self.node, {f'{ns}/planner_status': DiagnosticStatus,
+                                              f'{ns}/sim_contacts': DiagnosticStatus}, reliable)
+        rec.add(self.node, {f'{ns}/joint_states': JointState}, qos_profile_sensor_data)
+        rec.add(self.node, {f'{ns}/scene': MarkerArray}, LATCHED)
+        rec.add(self.node, {f'{ns}/canopy_points': PointCloud2}, reliable)
+        rec.add_frames(self.node, [ns])
+        self.scene_pub = self.node.create_publisher(MarkerArray, 'scene', LATCHED)
+        self.cloud_pub = self.node.create_publisher(PointCloud2, 'canopy_points', reliable)
+        self.harvest_pub = self.node.create_publisher(PoseArray, 'harvest_targets', BURST)
+        self.spinner = BackgroundSpin(self.node)
+
+    def close(self):
+        self.spinner.stop(2.0)
+        self.node.destroy_node()
+
+    def wait(self, pred, timeout, what, publishing=None, progress=None):
         """Until ``pred()``; ``publishing = (publisher, msg)`` sent every 0.2 s meanwhile, as a camera
         sends its clouds (the planner takes them best effort: any one may be dropped); ``progress()`` called
         at every look (to log what happened since the last)."""
@@ -69,74 +105,56 @@ def run_orchard_scenario(config, out, demo):
                 progress()
             if time.monotonic() > end:
                 raise RuntimeError(f'timed out waiting for {what}')
-            if not all(stack.alive().values()):
+            if not all(self.stack.alive().values()):
                 raise RuntimeError(f'a node exited while waiting for {what}')
             if publishing is not None and time.monotonic() - sent >= 0.2:
                 publishing[0].publish(publishing[1])
                 sent = time.monotonic()
             time.sleep(0.05)
 
-    def harvest(label):
-        """One harvest of the whole tree from where the arm rests; its final status and the contacts it made."""
-        msg = PoseArray()
+    def statuses(self, key):
+        return [m for _, m in self.rec.messages(f'{self.ns}/planner_status') if _values(m).get('goal') == key]
+
+    def harvest(self, label, apples):
+        """One harvest of ``apples`` (4x4 grasp poses) from where the arm rests, each status logged as it comes:
+        ``(goal, final status values, statuses, contacts the simulator reported)``."""
+        from geometry_msgs.msg import PoseArray
+
+        from picking_common.poses import pose_msg
+        msg = PoseArray(poses=[pose_msg(T) for T in apples])
         msg.header.frame_id = 'base_link'
-        msg.header.stamp = node.get_clock().now().to_msg()
-        for T in orchard.apples:
-            x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
-            pose = Pose()
-            pose.position.x, pose.position.y, pose.position.z = (float(v) for v in T[:3, 3])
-            pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in (x, y, z, w))
-            msg.poses.append(pose)
+        msg.header.stamp = self.node.get_clock().now().to_msg()
         key = f'{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}'
-        contacts_before = rec.count(f'{ns}/sim_contacts')
-        harvest_pub.publish(msg)
-        t0 = time.monotonic()
+        contacts_before = self.rec.count(f'{self.ns}/sim_contacts')
+        self.harvest_pub.publish(msg)
+        t0, told = time.monotonic(), [0]
 
         def ended():
-            return next((m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key
-                         and _values(m).get('state') in FINAL), None)
-        told = [0]
+            return next((m for m in self.statuses(key) if _values(m).get('state') in FINAL), None)
 
         def progress():
-            said = [m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key]
+            said = self.statuses(key)
             for m in said[told[0]:]:
                 log(f'  {label} {time.monotonic() - t0:6.1f} s  {m.message}')
             told[0] = len(said)
-        wait(lambda: ended() is not None, 120.0 + 15.0 * n, f'the {label} harvest to end', progress=progress)
+        self.wait(lambda: ended() is not None, 120.0 + 15.0 * len(apples), f'the {label} harvest to end',
+                  progress=progress)
         time.sleep(0.5)                                   # the witness's last look
         final = _values(ended())
-        statuses = [m for _, m in rec.messages(f'{ns}/planner_status') if _values(m).get('goal') == key]
-        contacts = [_values(m) for _, m in rec.messages(f'{ns}/sim_contacts')[contacts_before:]
+        contacts = [_values(m) for _, m in self.rec.messages(f'{self.ns}/sim_contacts')[contacts_before:]
                     if _values(m).get('state') == 'started']
-        log(f'  {label}: {final.get("state")}, {final.get("picked", "0")} of {n} picked, '
+        log(f'  {label}: {final.get("state")}, {final.get("picked", "0")} of {len(apples)} picked, '
             f'{len(contacts)} contacts reported by the simulator ({time.monotonic() - t0:.0f} s)')
-        return key, final, statuses, contacts
+        return key, final, self.statuses(key), contacts
 
-    runs, codes = {}, {}
-    try:
-        stack.wait_ready()
-        wait(lambda: scene_pub.get_subscription_count() >= 2 and cloud_pub.get_subscription_count() >= 1, 20.0,
-             'the planner and the simulator on scene and canopy_points')
-        scene_pub.publish(scene_markers(orchard.scene, 'base_link'))
-        wait(lambda: 'canopy from canopy_points' in stack.planner.output() and 'scene replaced' in
-             stack.planner.output() and 'from the scene topic' in stack.sim.output(), 20.0, 'the scene and the cloud',
-             (cloud_pub, cloud_message(orchard.cloud, 'base_link')))
-        runs['branch-aware'] = harvest('branch-aware')
-        client = AsyncParameterClient(node, 'picking_planner')
-        client.wait_for_services(timeout_sec=10.0)
-        done = client.set_parameters([Parameter('avoid_collisions', value=False)])
-        wait(done.done, 10.0, 'avoid_collisions set to false')
-        runs['checking off'] = harvest('checking off')
-    except RuntimeError as exc:
-        log(f'FAILED: {exc}')
-    finally:
-        codes = stack.stop()
-        for name, code in codes.items():
-            log(f'stopped {name}: exit code {code}')
-    spinner.stop(2.0)
-    node.destroy_node()
-    rclpy.try_shutdown()
 
+def orchard_report(rec, ns, runs, codes, orchard, n, seed, out, demo):
+    """The scenario's section: its checks, a table of both runs, the contacts, ``orchard.png`` and ``orchard.mcap``;
+    ``(lines, files, checks)``."""
+    from picking_core.kinematics import ArmModel
+    from picking_description import default_urdf
+
+    from .plots import plot_orchard
     checks = {'every node of the orchard arm exited with 0': set(codes.values()) == {0}}
     title = '## Scenario 5: a tree among branches'
     if len(runs) < 2:

@@ -45,6 +45,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
+from picking_common.poses import pose_msg
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
 from picking_core.methods import PATH_METHODS, POSE_METHODS
@@ -261,8 +262,7 @@ def harvest(args, node, poses):
         if not node.spin_until(lambda: pub.get_subscription_count() > 0, max(args.timeout - DISCOVERY, 0.0)):
             print(f'picking-goal: nobody subscribes to {where}', file=sys.stderr)
             return EXIT_TIMEOUT
-    from scipy.spatial.transform import Rotation
-    msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()) for T in poses])
+    msg = PoseArray(poses=[pose_msg(T) for T in poses])
     msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
     key, t_sent, seen = stamp_key(msg.header.stamp), time.monotonic(), 0
     print(f'sent: a {"tree" if args.kind == "tree" else "harvest"} of {len(poses)} apples, goal {key} '

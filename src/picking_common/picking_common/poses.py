@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from geometry_msgs.msg import Pose
+from scipy.spatial.transform import Rotation
+
 from picking_core.kinematics import pose_matrix
 
 
@@ -16,3 +19,12 @@ def msg_pose(pose):
         raise ValueError('the pose\'s orientation quaternion is zero (x = y = z = w = 0): give a unit quaternion, '
                          'e.g. w = 1 for the frame\'s own orientation')
     return pose_matrix([p.x, p.y, p.z], [o.x, o.y, o.z, o.w])
+
+
+def pose_msg(T):
+    """The geometry_msgs/Pose of a 4x4 transform."""
+    x, y, z, w = (float(v) for v in Rotation.from_matrix(T[:3, :3]).as_quat())
+    p = Pose()
+    p.position.x, p.position.y, p.position.z = (float(v) for v in T[:3, 3])
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = x, y, z, w
+    return p

@@ -21,16 +21,15 @@ from functools import partial
 import numpy as np
 from action_msgs.srv import CancelGoal
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import Pose, PoseArray
+from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
-from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.params import declare, usage
-from picking_common.poses import msg_pose
+from picking_common.poses import msg_pose, pose_msg
 from picking_common.run import run_node
 from picking_common.status import Diagnostics, Level, stamp_key, status, status_values
 from picking_common.tf import FrameError, FrameListener, stamp_seconds
@@ -139,7 +138,7 @@ class HarvesterNode(Node):
             return
         self._measure()
         for k, share in run.due():
-            msg = PoseArray(poses=[_pose(T) for _, T in share])
+            msg = PoseArray(poses=[pose_msg(T) for _, T in share])
             msg.header.frame_id = 'base_link'
             msg.header.stamp = self.get_clock().now().to_msg()
             run.sent(k, stamp_key(msg.header.stamp), [i for i, _ in share])
@@ -211,14 +210,6 @@ class HarvesterNode(Node):
         state = 'done' if self.run.end is not None else 'harvesting'
         return [('coordinator', Level.OK, f'{state}: {s["picked"]} of {s["apples"]} apples picked',
                  {'picked': s['picked'], 'closest_measured': s['closest_measured']})]
-
-
-def _pose(T):
-    q = Rotation.from_matrix(T[:3, :3]).as_quat()
-    p = Pose()
-    p.position.x, p.position.y, p.position.z = (float(v) for v in T[:3, 3])
-    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in q)
-    return p
 
 
 def main(args=None):
