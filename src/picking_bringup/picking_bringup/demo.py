@@ -32,13 +32,11 @@ def run_ros_part(args, config, out, demo, stack_initial):
     """Start, drive, record, stop. Returns (recorder, events dict, exit codes)."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
-    from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Path as PathMsg
     from picking_interfaces.action import Pick
     from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-    from scipy.spatial.transform import Rotation
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
 
@@ -75,60 +73,11 @@ def run_ros_part(args, config, out, demo, stack_initial):
                 raise RuntimeError(f'a node died while waiting for {what}: {stack.alive()}')
         raise RuntimeError(f'timed out after {timeout} s waiting for {what}')
 
-    def status_after(topic, start, pred):
-        for _, m in rec.messages(topic)[start:]:
-            if pred(m):
-                return m
-        return None
-
     try:
         spin_until(lambda: rec.count('joint_states') > 10 and pick.server_is_ready(), 30.0, 'the nodes to come up')
         spin_until(lambda: rec.count('joint_commands') > 10, 30.0, 'the controller to hold the arm')
         log('nodes up: joint_states flowing, controller holding, planner listening')
-        apple = PoseStamped()
-        apple.header.frame_id = 'base_link'
-        apple.header.stamp = node.get_clock().now().to_msg()
-        x, y, z = demo['apple_position']
-        apple.pose.position.x, apple.pose.position.y, apple.pose.position.z = float(x), float(y), float(z)
-        qx, qy, qz, qw = Rotation.from_euler('xyz', demo['apple_rpy']).as_quat()
-        apple.pose.orientation.x, apple.pose.orientation.y = float(qx), float(qy)
-        apple.pose.orientation.z, apple.pose.orientation.w = float(qz), float(qw)
-        t_sent = time.monotonic()
-        progress = {'phase': None}
-
-        def on_feedback(msg):
-            if msg.feedback.phase != progress['phase']:
-                progress['phase'] = msg.feedback.phase
-                log(f'  {time.monotonic() - t_sent:5.2f} s  {msg.feedback.phase:<20} '
-                    f'{msg.feedback.time_left:5.2f} s left, tracking error {msg.feedback.tracking_error:.4f} rad')
-
-        sent = pick.send_goal_async(Pick.Goal(target=apple), feedback_callback=on_feedback)
-        log(f'pick goal sent: apple at {[x, y, z]} m')
-        spin_until(lambda: sent.done(), 20.0, 'the planner to take the pick goal')
-        handle = sent.result()
-        key = bytes(handle.goal_id.uuid).hex()
-        result = handle.get_result_async()
-
-        def answer(state=None):
-            return status_after('planner_status', 0, lambda m: {kv.key: kv.value for kv in m.values}.get('goal') == key
-                                and (state is None or {kv.key: kv.value for kv in m.values}.get('state') == state))
-        # The planner ends every goal with a result (the controller's, or the reason): no time-out needed
-        # but a guard against a node that died (spin_until checks them).
-        spin_until(lambda: answer('accepted') or result.done(), 60.0, 'the controller to accept the plan')
-        accepted = answer('accepted')
-        if accepted is None:
-            raise RuntimeError(f'the planner refused the pick: {result.result().result.message}')
-        values = {kv.key: kv.value for kv in accepted.values}
-        events['plan'] = values
-        log(f'planned: {accepted.message} in {values.get("planning_ms", "?")} ms; moving')
-        spin_until(result.done, float(values['duration']) + 60.0, 'the pick result')
-        done = result.result()
-        if done.result.outcome != Pick.Result.SUCCEEDED:
-            raise RuntimeError(f'the pick did not succeed: {done.result.message}')
-        events['cycle_wall'] = time.monotonic() - t_sent
-        reached = status_after('controller_status', 0, lambda m: m.message == 'goal reached')
-        events['goal'] = {kv.key: kv.value for kv in reached.values} if reached is not None else {}
-        log(f'cycle done: {done.result.message}, {events["cycle_wall"]:.2f} s after sending the pick goal')
+        run_pick_scenario(node, pick, rec, demo, spin_until, events)
         time.sleep(0.5)                          # a last half second of joint_states
         if not args.quick:
             events['arc'] = run_arc_scenario(demo, spin_until, rec)
@@ -146,6 +95,63 @@ def run_ros_part(args, config, out, demo, stack_initial):
         for name, code in events['exit_codes'].items():
             log(f'stopped {name} (pid {stack.nodes[name].pid}): exit code {code}')
     return rec, events
+
+
+def run_pick_scenario(node, pick, rec, demo, spin_until, events):
+    """Scenario 1: one apple sent to the planner's pick action as a user would, its phases logged as they come;
+    the plan's values (``events['plan']``), the cycle's wall time and the controller's word on it kept."""
+    from geometry_msgs.msg import PoseStamped
+    from picking_interfaces.action import Pick
+    from scipy.spatial.transform import Rotation
+
+    def status_after(topic, start, pred):
+        return next((m for _, m in rec.messages(topic)[start:] if pred(m)), None)
+
+    apple = PoseStamped()
+    apple.header.frame_id = 'base_link'
+    apple.header.stamp = node.get_clock().now().to_msg()
+    x, y, z = demo['apple_position']
+    apple.pose.position.x, apple.pose.position.y, apple.pose.position.z = float(x), float(y), float(z)
+    qx, qy, qz, qw = Rotation.from_euler('xyz', demo['apple_rpy']).as_quat()
+    apple.pose.orientation.x, apple.pose.orientation.y = float(qx), float(qy)
+    apple.pose.orientation.z, apple.pose.orientation.w = float(qz), float(qw)
+    t_sent = time.monotonic()
+    progress = {'phase': None}
+
+    def on_feedback(msg):
+        if msg.feedback.phase != progress['phase']:
+            progress['phase'] = msg.feedback.phase
+            log(f'  {time.monotonic() - t_sent:5.2f} s  {msg.feedback.phase:<20} '
+                f'{msg.feedback.time_left:5.2f} s left, tracking error {msg.feedback.tracking_error:.4f} rad')
+
+    sent = pick.send_goal_async(Pick.Goal(target=apple), feedback_callback=on_feedback)
+    log(f'pick goal sent: apple at {[x, y, z]} m')
+    spin_until(lambda: sent.done(), 20.0, 'the planner to take the pick goal')
+    handle = sent.result()
+    key = bytes(handle.goal_id.uuid).hex()
+    result = handle.get_result_async()
+
+    def answer(state=None):
+        return status_after('planner_status', 0, lambda m: {kv.key: kv.value for kv in m.values}.get('goal') == key
+                            and (state is None or {kv.key: kv.value for kv in m.values}.get('state') == state))
+    # The planner ends every goal with a result (the controller's, or the reason): no time-out needed
+    # but a guard against a node that died (spin_until checks them).
+    spin_until(lambda: answer('accepted') or result.done(), 60.0, 'the controller to accept the plan')
+    accepted = answer('accepted')
+    if accepted is None:
+        raise RuntimeError(f'the planner refused the pick: {result.result().result.message}')
+    values = {kv.key: kv.value for kv in accepted.values}
+    events['plan'] = values
+    log(f'planned: {accepted.message} in {values.get("planning_ms", "?")} ms; moving')
+    spin_until(result.done, float(values['duration']) + 60.0, 'the pick result')
+    done = result.result()
+    if done.result.outcome != Pick.Result.SUCCEEDED:
+        raise RuntimeError(f'the pick did not succeed: {done.result.message}')
+    events['cycle_wall'] = time.monotonic() - t_sent
+    reached = status_after('controller_status', 0, lambda m: m.message == 'goal reached')
+    events['goal'] = {kv.key: kv.value for kv in reached.values} if reached is not None else {}
+    log(f'cycle done: {done.result.message}, {events["cycle_wall"]:.2f} s after sending the pick goal')
+
 
 
 def run_arc_scenario(demo, spin_until, rec):
