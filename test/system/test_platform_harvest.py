@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,7 @@ def test_tf_from_every_arm_is_each_arms_fk_in_the_platform_frame(platform):
     tool of every arm, looked up from the platform frame, is that arm's mount times its FK of its joint states."""
     import rclpy
 
-    from picking_common.tf import FrameListener
+    from picking_common.tf import FrameListener, stamp_seconds
     node = rclpy.create_node(f'platform_frames_{os.getpid()}')
     p = Platform.from_yaml(platform_path(), 'two')
     arms = [h.arm for h in Coordinator.from_platform(p, shipped_harvest).harvests]
@@ -101,9 +102,15 @@ def test_tf_from_every_arm_is_each_arms_fk_in_the_platform_frame(platform):
     frames = FrameListener(node, prefer='picking_core')
     spinner = BackgroundSpin(node)
     try:
+        end = time.monotonic() + 10.0
+        while len(states) < len(p.arms) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert len(states) == len(p.arms), f'joint_states of arms {sorted(states)} only'
         for k, m in enumerate(p.arms):
-            T = frames.transform(p.frame, f'{NS.strip("/")}/{m.namespace}/tool0', 0.0, 10.0)
-            q = reorder(states[k].name, states[k].position, arms[k].joint_names, 'joint_states')
+            state = states[k]                     # the tool from /tf at this state's stamp, against its FK
+            T = frames.transform(p.frame, f'{NS.strip("/")}/{m.namespace}/tool0', stamp_seconds(state.header.stamp),
+                                 10.0)
+            q = reorder(state.name, state.position, arms[k].joint_names, 'joint_states')
             assert np.abs(T[:3, 3] - (m.base @ arms[k].fk(q))[:3, 3]).max() < 1e-4, m.namespace
     finally:
         spinner.stop()

@@ -16,7 +16,7 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 
-from picking_core.frames import InvalidTransform, LookupError_, TransformBuffer
+from picking_core.frames import LookupError_, TransformBuffer
 
 TF_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                     history=HistoryPolicy.KEEP_LAST)
@@ -24,6 +24,8 @@ TF_STATIC_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
 #: s between two looks at /tf while a lookup waits for a transform.
 POLL = 0.005
+#: Messages a look takes from each topic at most (the queue's depth).
+DRAIN_MAX = TF_QOS.depth
 
 
 class FrameError(LookupError):
@@ -88,19 +90,23 @@ class _Ours:
         self.logger = node.get_logger()
 
     def drain(self):
-        """Every transform received since the last look, into the buffer; one that is not a transform is counted and
-        said (throttled), never taken."""
+        """The transforms received since the last look, into the buffer (at most a queue's depth of messages per
+        topic: a look always ends, however fast /tf comes); one that is not a transform is counted and said
+        (throttled), never taken."""
         for sub, static in self.subs:
-            while (got := sub.handle.take_message(self.type, False)) is not None:
-                for tf in got[0].transforms:
-                    t, r = tf.transform.translation, tf.transform.rotation
-                    try:
-                        self.buffer.set_transform(tf.header.frame_id, tf.child_frame_id, [t.x, t.y, t.z],
-                                                  [r.x, r.y, r.z, r.w], stamp_seconds(tf.header.stamp), static)
-                    except InvalidTransform as exc:
-                        self.refused += 1
-                        self.logger.warning(f'{"/tf_static" if static else "/tf"}: {exc}; not taken',
-                                            throttle_duration_sec=2.0)
+            for _ in range(DRAIN_MAX):
+                got = sub.handle.take_message(self.type, False)
+                if got is None:
+                    break
+                refused = self.buffer.set_transforms(
+                    [(tf.header.frame_id, tf.child_frame_id,
+                      (tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z),
+                      (tf.transform.rotation.x, tf.transform.rotation.y, tf.transform.rotation.z,
+                       tf.transform.rotation.w), stamp_seconds(tf.header.stamp)) for tf in got[0].transforms], static)
+                for exc in refused:
+                    self.refused += 1
+                    self.logger.warning(f'{"/tf_static" if static else "/tf"}: {exc}; not taken',
+                                        throttle_duration_sec=2.0)
 
     def transform(self, target, source, stamp, timeout):
         end = time.monotonic() + max(timeout, 0.0)

@@ -94,6 +94,32 @@ class _Link:
         return _matrix(translation, quaternion)
 
 
+def _checked(parent, child, translation, quaternion, stamp):
+    """``(parent, child, translation, unit quaternion, stamp)`` as plain floats, or :class:`InvalidTransform` naming
+    the frames (plain floats: a /tf message's transforms are taken many a second, numpy's per-call cost is not
+    needed for seven numbers)."""
+    parent, child = _frame(parent), _frame(child)
+    what = f'the transform {parent} -> {child}'
+    if not parent or not child:
+        raise InvalidTransform(f'{what} names an empty frame')
+    if parent == child:
+        raise InvalidTransform(f'{what} makes {child!r} its own parent')
+    try:
+        tx, ty, tz = (float(v) for v in translation)
+        qx, qy, qz, qw = (float(v) for v in quaternion)
+        stamp = float(stamp)
+    except (TypeError, ValueError):
+        raise InvalidTransform(f'{what}: a translation is 3 numbers and a rotation 4, got {translation!r}, '
+                               f'{quaternion!r}') from None
+    if not all(map(math.isfinite, (tx, ty, tz, qx, qy, qz, qw, stamp))):
+        raise InvalidTransform(f'{what} is not finite (translation {[tx, ty, tz]}, rotation {[qx, qy, qz, qw]}, '
+                               f'stamp {stamp})')
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if norm < 1e-9:
+        raise InvalidTransform(f'{what} has a zero quaternion')
+    return parent, child, (tx, ty, tz), (qx / norm, qy / norm, qz / norm, qw / norm), stamp
+
+
 def _matrix(translation, quaternion):
     T = np.eye(4)
     T[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
@@ -113,25 +139,27 @@ class TransformBuffer:
         """The transform that takes a point in ``child`` to ``parent`` at time ``stamp`` (s); ``static``: at every
         time. Raises :class:`InvalidTransform` (the frames named) for non-finite values, a zero quaternion, a frame
         that is its own parent or an empty name."""
-        parent, child = _frame(parent), _frame(child)
-        translation = np.asarray(translation, float).reshape(3)
-        quaternion = np.asarray(quaternion, float).reshape(4)
-        what = f'the transform {parent} -> {child}'
-        if not parent or not child:
-            raise InvalidTransform(f'{what} names an empty frame')
-        if parent == child:
-            raise InvalidTransform(f'{what} makes {child!r} its own parent')
-        if not (np.all(np.isfinite(translation)) and np.all(np.isfinite(quaternion)) and math.isfinite(stamp)):
-            raise InvalidTransform(f'{what} is not finite (translation {translation.tolist()}, rotation '
-                                   f'{quaternion.tolist()}, stamp {stamp})')
-        norm = float(np.linalg.norm(quaternion))
-        if norm < 1e-9:
-            raise InvalidTransform(f'{what} has a zero quaternion')
+        refused = self.set_transforms([(parent, child, translation, quaternion, stamp)], static)
+        if refused:
+            raise refused[0]
+
+    def set_transforms(self, rows, static=False):
+        """Many transforms at once (a /tf message's): ``rows`` of ``(parent, child, translation, quaternion,
+        stamp)``, each as for :meth:`set_transform`. The valid ones are taken; returns the :class:`InvalidTransform`
+        of each one refused."""
+        refused, taken = [], []
+        for row in rows:
+            try:
+                taken.append(_checked(*row))
+            except InvalidTransform as exc:
+                refused.append(exc)
         with self._lock:
-            link = self._links.get(child)
-            if link is None or link.parent != parent or link.static != bool(static):
-                link = self._links[child] = _Link(parent, bool(static))
-            link.add(float(stamp), translation, quaternion / norm, self.cache_time)
+            for parent, child, translation, quaternion, stamp in taken:
+                link = self._links.get(child)
+                if link is None or link.parent != parent or link.static != bool(static):
+                    link = self._links[child] = _Link(parent, bool(static))
+                link.add(stamp, translation, quaternion, self.cache_time)
+        return refused
 
     def frames(self):
         """Every frame the buffer knows (children and their parents)."""
