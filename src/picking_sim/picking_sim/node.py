@@ -43,6 +43,8 @@ from .witness import Witness
 
 #: s a scene in another frame waits for its transform into the arm's base.
 TRANSFORM_TIMEOUT = 0.2
+#: s the first scene in another frame waits: the listener it starts must first discover /tf's publishers.
+LISTEN_TIMEOUT = 2.0
 #: Servo steps run at each wake of the loop thread.
 STEPS_PER_WAKE = 2
 #: Hz of the witness's look at the samples published since its last.
@@ -119,7 +121,9 @@ class SimNode(Node):
         self._watched = collections.deque(maxlen=int(10 * p['publish_rate']))
         self.pub_contacts = self.create_publisher(DiagnosticStatus, 'sim_contacts', BURST)
         self.base_tf = p['frame_prefix'] + self.arm.base_frame
-        self.frames = FrameListener(self)
+        # /tf is listened to from the first scene in another frame on: every arm's frames cost each listener its
+        # share of a core, and the simulator needs them only for such a scene (a camera's mount is static).
+        self.frames = None
         # The world the witness checks against, drawn for viewers (RViz, Foxglove) in the arm's base.
         self.pub_world = self.create_publisher(MarkerArray, 'world_markers', LATCHED)
         self.pub_world.publish(scene_markers(scene, self.base_tf))
@@ -216,8 +220,12 @@ class SimNode(Node):
         frame = header.frame_id.lstrip('/')
         if frame in ('', self.arm.base_frame, self.base_tf):
             return np.eye(4)
+        first = self.frames is None
+        if first:
+            self.frames = FrameListener(self)
         try:
-            return self.frames.transform(self.base_tf, frame, stamp_seconds(header.stamp), TRANSFORM_TIMEOUT)
+            return self.frames.transform(self.base_tf, frame, stamp_seconds(header.stamp),
+                                         LISTEN_TIMEOUT if first else TRANSFORM_TIMEOUT)
         except FrameError as exc:
             raise ValueError(str(exc)) from None
 
@@ -266,7 +274,8 @@ class SimNode(Node):
     def close(self):
         self.loop.stop()
         self.commands.destroy()
-        self.frames.destroy()
+        if self.frames is not None:
+            self.frames.destroy()
 
 
 def main(args=None):
