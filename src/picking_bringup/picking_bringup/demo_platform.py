@@ -25,7 +25,7 @@ def run_platform_scenario(config, out, demo):
     from visualization_msgs.msg import MarkerArray
 
     from picking_common.run import BackgroundSpin
-    from picking_core.platform import Coordinator, Platform
+    from picking_core.platform import Platform
 
     from .demo_report import harvest_markers
     from .recording import Recorder
@@ -47,7 +47,7 @@ def run_platform_scenario(config, out, demo):
     rec.add_frames(node, names)
     markers = node.create_publisher(MarkerArray, '/tree_markers', 10)
     spinner = BackgroundSpin(node)
-    done = None
+    done, wall = None, float('nan')
     try:
         log(f'waiting for the {len(names)} arms and the coordinator to come up')
         stack.wait_ready()
@@ -67,7 +67,7 @@ def run_platform_scenario(config, out, demo):
     by_arm = {ns: [] for ns in names}
     for m in statuses:
         for ns in names:
-            if m.message.startswith(f'{ns}: apple ') and ' in the box' in m.message:
+            if m.message.startswith(f'{ns}: apple ') and ' delivered' in m.message:
                 by_arm[ns].append(int(m.message.split()[2]))
     left = {int(m.message.split()[1]): m.message.split(': ', 1)[1] for m in statuses
             if m.message.startswith('apple ') and 'left on the tree' in m.message}
@@ -81,6 +81,17 @@ def run_platform_scenario(config, out, demo):
     node.destroy_node()
     rclpy.try_shutdown()
 
+    return platform_report(rec, platform, names, tree, by_arm, left, final, statuses, codes, done, wall, n, seed,
+                           layout, config, out, demo)
+
+
+def platform_report(rec, platform, names, tree, by_arm, left, final, statuses, codes, done, wall, n, seed, layout,
+                    config, out, demo):
+    """The scenario's section: its checks, the arms' rates, the decisions that kept them apart, ``platform.png``
+    and ``platform.mcap``; ``(lines, files, checks)``."""
+    from picking_core.platform import Coordinator
+
+    from .plots import plot_platform
     coordinator = Coordinator.from_platform(platform, partial(shipped_harvest, config))
     files, checks = [], {}
     ok_run = done is not None and done.returncode == 0 and final is not None
@@ -91,6 +102,8 @@ def run_platform_scenario(config, out, demo):
     v = _values(final)
     measured = float(v.get('closest_measured', 'nan'))
     checks['the arms never came within 5 cm (measured)'] = measured >= coordinator.clearance
+    checks['every apple the coordinator counts is drawn for its arm'] = (
+        sum(len(apples) for apples in by_arm.values()) == int(v.get('picked', -1)))
     tools = {}
     for k, (ns, mount) in enumerate(zip(names, platform.arms)):
         arm = coordinator.harvests[k].arm
@@ -98,7 +111,6 @@ def run_platform_scenario(config, out, demo):
                       if len(m.position) >= arm.dof])
         tools[ns] = (mount.base @ arm.fk(q))[:, :3, 3] if len(q) else np.empty((0, 3))
     drawn = _grasp_drawings(coordinator, tree, by_arm)
-    from .plots import plot_platform
     files.append(plot_platform(out / 'platform.png', tree, by_arm, sorted(left), tools,
                                [m.base[:3, 3] for m in platform.arms], drawn,
                                f'Scenario 4: {n} apples, {len(names)} arms'))

@@ -412,7 +412,7 @@ def up_line(stack, args):
     return what
 
 
-def main(argv=None):
+def build_parser():
     parser = argparse.ArgumentParser(prog='picking-stack', description=__doc__.split('\n\n')[0],
                                      epilog='Examples:\n  picking-stack\n  picking-stack --ns /arm2 --domain 7\n'
                                             '  picking-stack -p picking_controller:update_rate:=250.0 --for 10\n  picking-stack --paper',
@@ -440,6 +440,11 @@ def main(argv=None):
     parser.add_argument('--paper', action='store_true',
                         help="the paper's interpolation methods (config/paper_methods.yaml) instead of the shipped "
                              'jerk-limited, blended ones')
+    return parser
+
+
+def main(argv=None):
+    parser = build_parser()
     args = parser.parse_args(argv)
     try:
         extra = overrides(args.params)
@@ -471,6 +476,12 @@ def main(argv=None):
         started = stack.nodes
     for name, p in started.items():
         print(f'picking-stack: started {name} (pid {p.pid})', flush=True)
+    return run(stack, args, stopping)
+
+
+def run(stack, args, stopping):
+    """Wait until ``stack`` is up, keep it up until ``stopping`` (or ``--for``), take it down; the exit code: 0 only
+    when it came up and every node stopped with 0. A node that stopped by itself has the end of its log printed."""
     code = 0
     try:
         stack.wait_ready(args.timeout)
