@@ -152,7 +152,8 @@ def test_picking_goal_stop_cancels_a_pick_another_process_sent(tmp_path):
     import time
 
     from picking_bringup.stack import Stack
-    stack = Stack('/stop', tmp_path)
+    # A slow pick (about 20 s): a new process may need seconds of DDS discovery before it can ask anything.
+    stack = Stack('/stop', tmp_path, args={'picking-planner': ['-p', 'speed_scale:=0.2']})
     try:
         stack.wait_ready()
         ns = ['--ros-args', '-r', '__ns:=/stop']
