@@ -313,6 +313,21 @@ def running_stack(ns, log_dir, **args):
     assert set(codes.values()) == {0}, codes
 
 
+@contextmanager
+def shared_stack(ns, log_dir, **args):
+    """A stack in ``ns`` and a client for a module's tests (started once, given a minute to come up on a loaded
+    machine); afterwards both are stopped by pid."""
+    ensure_rclpy()
+    stack = Stack(ns, log_dir, **args)
+    client = Client(ns)
+    try:
+        client.wait_ready(60.0)
+        yield stack, client
+    finally:
+        client.close()
+        stop_all(stack.processes)
+
+
 FINAL = ('succeeded', 'aborted', 'superseded', 'canceled', 'refused')
 
 

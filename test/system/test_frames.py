@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.serialization import deserialize_message
-from rosstack import ARM, DOWN, Client, Stack, ensure_rclpy, make_pose, reach, settles_at, stop_all
+from rosstack import ARM, DOWN, make_pose, reach, settles_at, shared_stack
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
@@ -26,15 +26,8 @@ CAMERA = ([0.3, -0.2, 0.8], Rotation.from_euler('zx', [150, 20], degrees=True).a
 
 @pytest.fixture(scope='module')
 def arm(tmp_path_factory):
-    ensure_rclpy()
-    stack = Stack(NS, tmp_path_factory.mktemp('logs'), foxglove=PORT)
-    client = Client(NS)
-    try:
-        client.wait_ready(60.0)
+    with shared_stack(NS, tmp_path_factory.mktemp('logs'), foxglove=PORT) as (stack, client):
         yield stack, client
-    finally:
-        client.close()
-        stop_all(stack.processes)
 
 
 def static_camera(client, parent='frames/base_link', child='camera', where=CAMERA, stamp=None):

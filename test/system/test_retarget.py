@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped
-from rosstack import ARM, BURST, DOWN, Client, Stack, ensure_rclpy, make_pose, settles_at, stop_all
+from rosstack import ARM, BURST, DOWN, make_pose, settles_at, shared_stack
 
 from picking_common.status import status_values
 from picking_core.goals.intake import ZERO_KEY
@@ -19,15 +19,8 @@ CENTRE = np.array([0.6, 0.05, 0.45])
 
 @pytest.fixture(scope='module')
 def arm(tmp_path_factory):
-    ensure_rclpy()
-    stack = Stack(NS, tmp_path_factory.mktemp('logs'))
-    client = Client(NS)
-    try:
-        client.wait_ready(60.0)
+    with shared_stack(NS, tmp_path_factory.mktemp('logs')) as (stack, client):
         yield stack, client
-    finally:
-        client.close()
-        stop_all(stack.processes)
 
 
 def circle(k):

@@ -106,6 +106,11 @@ def plot_path_3d(path, curves, points=None, title='', point_labels=None, unit=''
     u = f' [{unit}]' if unit else ''
     ax.set_xlabel(f'x{u}'), ax.set_ylabel(f'y{u}'), ax.set_zlabel(f'z{u}')
     _equal_axes(ax, np.vstack(list(curves.values())))
+    return _save_3d(plt, fig, ax, path, title)
+
+
+def _save_3d(plt, fig, ax, path, title):
+    """A 3D figure's title and legend, written to ``path`` and closed."""
     ax.set_title(title)
     ax.legend(loc='upper left', fontsize='small')
     fig.tight_layout()
@@ -319,9 +324,4 @@ def plot_viewer(path, links, moments, tool, world, title):
         drawn.append(np.array(list(where.values())))
     ax.set_xlabel('x [m]'), ax.set_ylabel('y [m]'), ax.set_zlabel('z [m]')
     _equal_axes(ax, np.vstack(drawn))
-    ax.set_title(title)
-    ax.legend(loc='upper left', fontsize='small')
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save_3d(plt, fig, ax, path, title)

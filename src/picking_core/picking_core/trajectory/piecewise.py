@@ -181,7 +181,7 @@ class PiecewisePolynomial:
         return q, qd, qdd
 
     def _sample_gathered(self, t):
-        """The (3n, N) rows at ``t`` for many short segments (a spline through 10 ms samples): one gather and
+        """The (3n, N) rows at ``t`` for many short segments (a spline through closely spaced samples): one gather and
         one batched product instead of a Python loop over the segments."""
         breaks = self._breaks
         tc = np.clip(t, breaks[0], breaks[-1])
