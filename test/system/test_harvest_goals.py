@@ -128,10 +128,10 @@ def replace_tree(stack, client, trajectories, key):
     assert replaced['state'] == 'superseded' and 1 <= int(replaced['picked']) < 4, replaced
     done = final(client, stamp_key(second.header.stamp), 60.0)
     assert done['state'] == 'succeeded' and done['picked'] == '2', done
-    # Planned once however often it came; again only when the controller refused a plan as late (one
+    # Planned once however often it came; again only when its plan came too late (one
     # planned before the feedback of a stall that came meanwhile: a loaded machine's controller stalls).
     log = stack.planner.output()
-    late = log.count(f'harvest goal {stamp_key(second.header.stamp)}: the controller got its plan too late')
+    late = log.count(f'harvest goal {stamp_key(second.header.stamp)}: its plan came too late')
     assert log.count('harvest goal: harvest,') == plans + 1 + late
     plan = trajectories[seen]
     start = np.array(plan.points[0].positions)

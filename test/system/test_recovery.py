@@ -8,12 +8,13 @@ import time
 import numpy as np
 from control_msgs.action import FollowJointTrajectory
 from diagnostic_msgs.msg import DiagnosticStatus
-from rclpy.action import ActionServer
+from rclpy.action import ActionServer, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.task import Future
 from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
 
 from picking_common.status import stamp_key, status_values
-from picking_core.goals.lifecycle import RESULT_MARGIN
+from picking_core.goals.lifecycle import RESPONSE_LIMIT, RESULT_MARGIN
 
 
 def test_watchdog_holds_when_feedback_stops_and_resumes_when_it_returns(tmp_path):
@@ -102,19 +103,32 @@ def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_
 
 class StandInController:
     """The test plays the controller's follow_joint_trajectory server (the real one stopped):
-    ``verdicts`` says how each goal ends, in turn: an error code (aborted, with a reason), or
-    'silent' (accepted, then never answered)."""
+    ``verdicts`` says how each goal ends, in turn: an error code (aborted, with a reason),
+    'succeeded', or 'silent' (accepted, then never answered); the first ``unanswered`` goals get no
+    goal response at all (as when DDS drops one while discovery is under way)."""
 
-    def __init__(self, client, verdicts):
-        self.client, self.verdicts, self.plans = client, list(verdicts), []
+    def __init__(self, client, verdicts, unanswered=0):
+        self.client, self.verdicts, self.plans, self.asked = client, list(verdicts), [], 0
+        self.unanswered = unanswered
+        # (Reentrant: a goal left unanswered must not hold up the requests after it.)
         self.server = ActionServer(client, FollowJointTrajectory, 'follow_joint_trajectory',
-                                   execute_callback=self._execute)
+                                   goal_callback=self._goal, execute_callback=self._execute,
+                                   callback_group=ReentrantCallbackGroup())
+
+    async def _goal(self, request):
+        self.asked += 1
+        if self.asked <= self.unanswered:
+            await Future()                                   # never answered
+        return GoalResponse.ACCEPT
 
     async def _execute(self, handle):
         self.plans.append(handle.request.trajectory)
         verdict = self.verdicts.pop(0) if self.verdicts else FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP
         if verdict == 'silent':
             await Future()                                   # never done
+        if verdict == 'succeeded':
+            handle.succeed()
+            return FollowJointTrajectory.Result(error_code=FollowJointTrajectory.Result.SUCCESSFUL)
         handle.abort()
         words = {FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP: 'the trajectory ends in the past'}
         return FollowJointTrajectory.Result(error_code=verdict, error_string=words.get(verdict, 'unknown joints'))
@@ -152,6 +166,25 @@ def test_a_plan_that_reaches_the_controller_too_late_is_planned_again_further_ah
         # (No controller reference here: each plan starts from the measured state, stamped 0, "now".)
         time.sleep(0.5)
         assert len(controller.plans) == 4                        # not planned a fourth time
+        client.retire(controller.server)
+
+
+def test_a_plan_whose_goal_response_never_comes_is_planned_again_and_the_goal_succeeds(tmp_path):
+    """A goal response can be lost (a DDS service drops it while the server has not yet discovered
+    the client's reader, as when a second arm starts on a loaded machine): the planner plans the goal
+    again instead of ending it, and the goal succeeds through its second plan."""
+    with running_stack('/sys6', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        controller = StandInController(client, ['succeeded'], unanswered=1)
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        # (No controller reference here: the plan is stamped 0, so its answer is awaited RESPONSE_LIMIT s.)
+        done = client.wait_for(lambda: [m for m in _answers(client, mark, goal)
+                                        if status_values(m).get('state') in ('succeeded', 'aborted', 'refused')],
+                               RESPONSE_LIMIT + 20.0, 'the goal to end')[0]
+        assert status_values(done)['state'] == 'succeeded', done.message
+        assert controller.asked == 2 and len(controller.plans) == 1
+        assert 'did not answer the plan' in stack.planner.output()
         client.retire(controller.server)
 
 

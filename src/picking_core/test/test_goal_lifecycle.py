@@ -9,6 +9,7 @@ from picking_core.goals.lifecycle import (
     INVALID_GOAL,
     INVALID_JOINTS,
     OLD_HEADER_TIMESTAMP,
+    ANSWER_GRACE,
     RESPONSE_LIMIT,
     RESULT_MARGIN,
     Flight,
@@ -87,12 +88,17 @@ def test_time_left_stands_still_while_the_controller_is_silent_on_where_the_plan
     assert lefts == sorted(lefts, reverse=True) and lefts[1:5] == [pytest.approx(1.5)] * 4
 
 
-def test_an_unanswered_plan_ends_aborted_and_one_without_a_result_superseded_when_a_newer_one_was_accepted():
+def test_a_plan_unanswered_by_its_start_is_to_be_planned_again_and_one_without_a_result_ends():
     life = Lifecycle()
     silent = life.sent(flight('s', sent=0.0, start=1.0))
-    assert life.overdue(RESPONSE_LIMIT - 0.1, 5.0) == []
-    (gone, ending), = life.overdue(RESPONSE_LIMIT + 0.1, 5.0)
-    assert gone is silent and ending.outcome == Outcome.ABORTED and 'did not answer' in ending.message
+    assert life.overdue(0.5, 1.0 + ANSWER_GRACE - 0.1) == []
+    (gone, ending), = life.overdue(0.5, 1.0 + ANSWER_GRACE + 0.1)
+    assert gone is silent and ending.late and 'did not answer the plan by its start' in ending.message
+    assert not life.unanswered()                       # the plan again may go
+    unstamped = life.sent(flight('u', sent=0.0, start=None))
+    assert life.overdue(RESPONSE_LIMIT - 0.1, 50.0) == []
+    (gone, ending), = life.overdue(RESPONSE_LIMIT + 0.1, 50.0)
+    assert gone is unstamped and ending.late
     first = life.sent(flight('a', sent=20.0, start=21.0, duration=1.0))
     life.response(first, True)
     newer = life.sent(flight('b', sent=21.0, start=22.0, duration=1.0))

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from picking_core.collision import World
 from picking_core.collision.scene import Scene, rod
-from picking_core.goals.lifecycle import LATE_REPLANS, OLD_HEADER_TIMESTAMP
+from picking_core.goals.lifecycle import ANSWER_GRACE, LATE_REPLANS, OLD_HEADER_TIMESTAMP
 from picking_core.goals.planning import GoalPlanner
 from picking_core.goals.requests import Goal, Kind, Target
 from picking_core.goals.runner import GoalRunner
@@ -177,6 +177,26 @@ def test_a_plan_refused_as_late_is_planned_again_further_ahead_then_refused(port
         runner.on_result(flight, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.1 s in the past')
         assert len(port.sent) == min(attempt + 2, LATE_REPLANS + 1)
     assert port.states('g')[-1] == 'refused' and 'too late 3 times' in port.statuses[-1]['text']
+
+
+def test_a_plan_the_controller_does_not_answer_by_its_start_is_planned_again_and_its_late_answer_canceled(port):
+    """A goal response can be lost (a DDS service drops it while the server has not yet discovered the client):
+    the goal is planned again instead of waiting for an answer that may never come."""
+    port.ref = ((HOME, np.zeros(6), np.zeros(6)), 0.09)              # stamped: it starts from the reference
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    lost, _, stamp = port.sent[-1]
+    assert stamp > 0
+    port.t = stamp + ANSWER_GRACE + 0.1
+    runner.tick()
+    again, _, _ = port.sent[-1]
+    assert len(port.sent) == 2 and again.goal.key == 'g' and again.goal.attempt == 1
+    assert any('did not answer the plan' in text for level, text in port.logs if level == 'WARN')
+    runner.on_response(lost, True, handle=object())                 # it came after all: no longer ours
+    assert port.canceled == [lost]
+    runner.on_response(again, True, handle=object())
+    runner.on_result(again, 'succeeded', 0, '')
+    assert port.states('g')[-1] == 'succeeded' and port.states('g').count('succeeded') == 1
 
 
 def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planned(port):

@@ -4,8 +4,10 @@ Every plan goes to the controller as a ``follow_joint_trajectory`` goal. The con
 says whether it took the plan (**accepted**), its first feedback that the plan runs (**executing**), and
 its result how it ended: **succeeded**, **aborted** (a tolerance, lost feedback), **superseded** (our
 newer plan took over), **canceled**, or **refused** (it never ran). A plan refused as late (its stamp
-already past when it arrived) is planned again. A controller that does not answer in time ends the goal
-as aborted with the reason: no goal stays accepted forever.
+already past when it arrived) is planned again, and so is one the controller has not answered by its
+start: it can no longer run as planned, and its answer may be lost (a DDS service drops a response while
+the server has not yet discovered the client's reader). A controller that sends no result in time ends
+the goal as aborted with the reason: no goal stays accepted forever.
 
 Times: ``wall`` is ``time.monotonic()``; plan times are on the controller's schedule.
 """
@@ -15,9 +17,12 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
-#: s the controller has to answer a plan (accept it or not) before the goal is aborted; a plan that
-#: starts later than that may be answered until its start. Generous: a controller sharing a saturated
-#: machine has answered after seconds, and a late answer costs a re-plan where an abort costs the goal.
+#: s after a plan's start that its goal response may still come (the controller took it just in time and
+#: its answer is on the way) before the plan is taken as not delivered and planned again.
+ANSWER_GRACE = 1.0
+#: s the controller has to answer a plan stamped 0 (it starts where the controller puts it) before it is
+#: taken as not delivered and planned again. Generous: a controller sharing a saturated machine has
+#: answered after seconds.
 RESPONSE_LIMIT = 10.0
 #: s after a plan's end that its result may take (the goal time tolerance and settling) before the goal
 #: is aborted.
@@ -180,21 +185,26 @@ class Lifecycle:
         return Ending(Outcome.REFUSED, f'the controller refused the plan: {text}', code)
 
     def overdue(self, wall, schedule_now):
-        """Flights the controller left unanswered too long, removed, with an Ending each: no goal response
-        RESPONSE_LIMIT s after sending and by the plan's start, or no result RESULT_MARGIN s after the plan's end
-        (schedule time ``schedule_now``): aborted, or superseded when the controller accepted a newer plan of ours
-        after it."""
+        """Flights the controller left unanswered too long, removed, with an Ending each. Not answered by the
+        plan's start (and ANSWER_GRACE s; stamped 0: RESPONSE_LIMIT s after sending): ``late``, to be planned
+        again (an answer that comes later is for a plan no longer ours). No result RESULT_MARGIN s after the
+        plan's end (schedule time ``schedule_now``): aborted, or superseded when the controller accepted a newer
+        plan of ours after it."""
         ended = []
         for key, flight in list(self.flights.items()):
-            start = flight.start if flight.start is not None else -float('inf')
-            if flight.state == State.SENT and wall - flight.sent > RESPONSE_LIMIT and schedule_now > start:
-                why = (f'the controller did not answer the plan within {wall - flight.sent:.1f} s (by its start, '
-                       f'and at least {RESPONSE_LIMIT:g} s)')
-            elif flight.state != State.SENT and flight.start is not None and \
-                    schedule_now > flight.start + flight.duration + RESULT_MARGIN:
+            if flight.state == State.SENT:
+                if flight.start is not None and schedule_now > flight.start + ANSWER_GRACE:
+                    why = f'the controller did not answer the plan by its start (and {ANSWER_GRACE:g} s)'
+                elif flight.start is None and wall - flight.sent > RESPONSE_LIMIT:
+                    why = f'the controller did not answer the plan within {RESPONSE_LIMIT:g} s'
+                else:
+                    continue
+                del self.flights[key]
+                ended.append((flight, Ending(None, why, late=True)))
+                continue
+            if flight.start is not None and schedule_now > flight.start + flight.duration + RESULT_MARGIN:
                 why = f"no result from the controller {RESULT_MARGIN:g} s after the plan's end"
-            elif flight.state != State.SENT and flight.start is None and \
-                    wall - flight.sent > flight.duration + BRIDGE_ALLOWANCE + RESULT_MARGIN:
+            elif flight.start is None and wall - flight.sent > flight.duration + BRIDGE_ALLOWANCE + RESULT_MARGIN:
                 why = f"no result from the controller {RESULT_MARGIN:g} s after the plan's end"
             else:
                 continue

@@ -164,7 +164,10 @@ class GoalRunner:
         for flight, ending in self.lifecycle.overdue(self.port.wall(), self.schedule_now()):
             if flight.handle is not None:
                 self.port.cancel(flight)
-            self.end(flight.goal, ending, flight.duration)
+            if ending.late:
+                self._late(flight, ending)
+            else:
+                self.end(flight.goal, ending, flight.duration)
         self._harvest_progress()
 
     def _serve_waiting(self):
@@ -346,19 +349,24 @@ class GoalRunner:
         if ending is None:
             return
         if ending.late:
-            self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent, late=True)
-        if not ending.late:
+            self._late(flight, ending)
+        else:
             self.end(flight.goal, ending, flight.duration)
-        elif flight.goal.attempt >= LATE_REPLANS:
+
+    def _late(self, flight, ending):
+        """``flight``'s plan reached the controller too late to run as planned, or was not answered by its start:
+        its goal is planned again, further ahead, a bounded number of times."""
+        self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent, late=True)
+        if flight.goal.attempt >= LATE_REPLANS:
             self.refuse(flight.goal, f'its plan reached the controller too late {flight.goal.attempt + 1} times '
                                      f'(a stalled or overloaded machine?): {ending.message}', ending.code)
-        else:
-            if getattr(flight, 'replaces', None) is not None:   # the plan it was to take over from runs on
-                self.lifecycle.flights[flight.goal.key] = flight.replaces
-            self.port.log('WARN', f'{flight.goal.kind.value} goal {flight.goal.key}: the controller got its plan too '
-                                  f'late ({ending.message}); planning it again, further ahead')
-            self.timing.delay = 0.0
-            self._handle(flight.goal.again(attempt=flight.goal.attempt + 1))
+            return
+        if getattr(flight, 'replaces', None) is not None:   # the plan it was to take over from runs on
+            self.lifecycle.flights[flight.goal.key] = flight.replaces
+        self.port.log('WARN', f'{flight.goal.kind.value} goal {flight.goal.key}: its plan came too late to run as '
+                              f'planned ({ending.message}); planning it again, further ahead')
+        self.timing.delay = 0.0
+        self._handle(flight.goal.again(attempt=flight.goal.attempt + 1))
 
     def _not_run(self, flight, why):
         """``flight``'s plan will not run: its goal is refused; the rest of a harvest planned again stops the plan it
