@@ -6,10 +6,10 @@ from types import SimpleNamespace
 import pytest
 
 from picking_core.goals.lifecycle import (
+    ANSWER_GRACE,
     INVALID_GOAL,
     INVALID_JOINTS,
     OLD_HEADER_TIMESTAMP,
-    ANSWER_GRACE,
     RESPONSE_LIMIT,
     RESULT_MARGIN,
     Flight,
