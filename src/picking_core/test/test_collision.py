@@ -302,3 +302,19 @@ def test_a_joint_path_is_found_around_an_obstacle_and_shortcut():
     with pytest.raises(NoPath, match='no collision-free joint path'):
         rrt_connect(lambda q: (np.atleast_2d(q)[:, 0] > 0.4) & (np.atleast_2d(q)[:, 0] < 0.6), [0.0, 0.0],
                     [1.0, 0.0], lower, upper, iterations=200)      # a wall across the whole space
+
+
+def test_segment_distances_agree_with_sampling_when_either_segment_is_a_point():
+    """A sphere is a capsule of no length: as the second segment it was measured from the first's start."""
+    from picking_core.kinematics.capsules import segment_distances
+    rng = np.random.default_rng(0)
+    s = np.linspace(0.0, 1.0, 401)[:, None]
+    for k in range(600):
+        p0, p1, q0, q1 = rng.normal(size=(4, 3))
+        if k % 3 == 0:
+            q1 = q0
+        elif k % 3 == 1:
+            p1 = p0
+        sampled = np.min(np.linalg.norm((p0 + s * (p1 - p0))[:, None] - (q0 + s * (q1 - q0))[None], axis=2))
+        d = segment_distances(p0, p1, q0, q1)
+        assert d <= sampled + 1e-9 and sampled - d < 0.02

@@ -99,6 +99,8 @@ def segment_distances(p0, p1, q0, q1):
         # s on the first segment: the lines' closest point (parallel lines: its start), clamped.
         s = np.where(denom > tiny, np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
         s = np.where(a > tiny, s, 0.0)
+        # A second segment that is a point: the first's closest point to it.
+        s = np.where((e <= tiny) & (a > tiny), np.clip(-c / a, 0.0, 1.0), s)
         t = np.where(e > tiny, (b * s + f) / e, 0.0)
         # t out of the second segment: clamp it and find s again for the clamped t.
         t_c = np.clip(t, 0.0, 1.0)
