@@ -10,8 +10,8 @@ VENV := .venv
 BIN := $(abspath $(VENV))/bin
 STAMP := $(VENV)/.installed
 PACKAGE_FILES := $(wildcard src/*/setup.py src/*/package.xml src/*/CMakeLists.txt src/*/action/* src/*/msg/*)
-# Built into the venv by tools/build_interfaces.py (the pip route has no control_msgs or tf2_msgs wheel).
-INTERFACES := control_msgs tf2_msgs picking_interfaces
+# Built into the venv by tools/build_interfaces.py (the pip route has no control_msgs, tf2_msgs or vision_msgs wheel).
+INTERFACES := control_msgs tf2_msgs vision_msgs picking_interfaces
 
 # Network rule: DDS discovery never leaves the loopback interface, and every run
 # gets a domain of its own so that parallel runs never see each other.

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ('control_msgs', 'tf2_msgs', 'picking_interfaces')       # in build order
+PACKAGES = ('control_msgs', 'tf2_msgs', 'vision_msgs', 'picking_interfaces')       # in build order
 
 
 def point_exports_here(prefix):
