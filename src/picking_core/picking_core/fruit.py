@@ -11,9 +11,9 @@ alone, never from what the planner meant:
 - **carry and drop**: a detached apple moves with the tool; opening the gripper releases it and it falls
   under gravity onto what is below: into the fruit box (*in the box*), onto another box of the scene or
   the ground (*dropped*, where);
-- **knocks and bruises**: an arm link touching an apple that is not the one between the fingers is a
-  *knock* (the apple is pushed aside, and may come off); a contact faster than ``bruise_speed`` (a
-  landing in the lined box: ``box_bruise_speed``) is a *bruise*.
+- **knocks and bruises**: an arm link or a finger touching an apple not held is a *knock* (the apple is
+  pushed aside, and may come off); a contact faster than ``bruise_speed`` (a landing in the lined box:
+  ``box_bruise_speed``) is a *bruise*. (An apple in the fingers does not knock others: not modelled.)
 
 Times are s, lengths m, in the arm's base frame (z up).
 """
@@ -25,11 +25,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kinematics.capsules import segment_distances
+from .kinematics.capsules import point_segment_distances
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
-#: s: the pendulums are integrated in steps no longer than this (a 6 cm stem swings at about 2 Hz).
-MAX_STEP = 0.0025
+#: s: the pendulums are integrated in steps no longer than this (an apple on a 3 cm stem swings at 2.4 Hz:
+#: a sixtieth of its period keeps the symplectic step's period error near a tenth of a percent).
+MAX_STEP = 0.01
+#: m: a sample whose links are this far from every loose apple skips the contact check (apples move less
+#: than that between two looks).
+NEAR = 0.05
 #: m an apple pushed aside by a link stays in that contact until this far from it (one knock, not one a sample).
 CONTACT_HYSTERESIS = 0.01
 #: m the fingers open beyond an apple's width before it is let go.
@@ -182,8 +186,9 @@ class FruitWorld:
         return len(self.rest)
 
     def counts(self):
-        """How many apples are where, with the bruised, knocked and missed-grasp tallies."""
-        out = {f.words: int(np.sum(self.fate == f)) for f in Fate}
+        """How many apples are where (``on_the_tree``, ``in_the_box``, ...), with the bruised, knocked and
+        missed-grasp tallies."""
+        out = {f.words.replace(' ', '_'): int(np.sum(self.fate == f)) for f in Fate}
         out.update(bruised=int(self.bruised.sum()), knocked=int(np.sum(self.knocks > 0)),
                    missed_grasps=int(self.misses.sum()))
         return out
@@ -208,28 +213,50 @@ class FruitWorld:
         return a
 
     # -- the arm's samples ----------------------------------------------------------------------------
-    def observe(self, times, tools, openings, links, link_radii, gripper_links=()):
+    def observe(self, times, tools, openings, links, link_radii, link_names=None):
         """The arm at ``times`` (N,): ``tools`` (N, 4, 4) tool poses, ``openings`` (N,) finger openings (m),
-        ``links`` (N, K, 2, 3) capsule segments and ``link_radii`` (K,); ``gripper_links`` the capsules of the
-        gripper (they hold the apple between the fingers without knocking it). Returns the events."""
+        ``links`` (N, K, 2, 3) the capsule segments of its links and fingers, ``link_radii`` (K,), ``link_names``
+        (K,) for the events. Returns the events."""
         events = []
-        for t, tool, opening, segs in zip(times, tools, openings, links):
+        links, link_radii = np.asarray(links, float).reshape(len(times), -1, 2, 3), np.asarray(link_radii, float)
+        names = list(link_names) if link_names is not None else [f'link {k}' for k in range(len(link_radii))]
+        near = self._near(links, link_radii)
+        for t, tool, opening, segs, pairs in zip(times, tools, openings, links, near):
             if t <= self.t:
                 continue
-            self._advance(float(t), np.asarray(tool, float), np.asarray(segs, float), events)
-            self._grasping(float(t), np.asarray(tool, float), float(opening), events)
-            self._knocks(float(t), np.asarray(segs, float), np.asarray(link_radii, float), set(gripper_links),
-                         np.asarray(tool, float), events)
-            self._links = (float(t), np.asarray(segs, float))
+            tool = np.asarray(tool, float)
+            self._advance(float(t), tool, events)
+            self._grasping(float(t), tool, float(opening), events)
+            if len(pairs) or self._touching:
+                self._knocks(float(t), segs, link_radii, names, pairs, events)
+            self._links = (float(t), segs)
         return events
 
-    def _advance(self, t, tool, segs, events):
+    def _near(self, links, link_radii):
+        """Per sample of capsule segments ``links`` (N, K, 2, 3): the (apple, link) pairs within NEAR of each other
+        at the batch's start (a falling apple is paired with every link)."""
+        n_links = links.shape[1]
+        falling = np.flatnonzero(self.fate == Fate.FALLING)
+        always = [(int(i), k) for i in falling for k in range(n_links)]
+        loose = np.flatnonzero(self.fate == Fate.ON_TREE)
+        if not len(loose) or not len(links):
+            return [always] * len(links)
+        d = point_segment_distances(self.p[loose][None, :, None], links[:, None, :, 0], links[:, None, :, 1])  # (N, n, K)
+        gap = d - link_radii[None, None] - self.radius[loose][None, :, None]
+        out = [list(always) for _ in range(len(links))]
+        for n, a, k in zip(*np.nonzero(gap < NEAR)):
+            out[n].append((int(loose[a]), int(k)))
+        return out
+
+    def _advance(self, t, tool, events):
         """Every apple moved on to ``t``: on the tree a pendulum, in the fingers with the tool, falling under
         gravity until it lands."""
         dt_all = t - self.t
         steps = max(1, int(np.ceil(dt_all / MAX_STEP)))
         dt = dt_all / steps
         on_tree = self.fate == Fate.ON_TREE
+        if self.wind.still:                      # an apple hanging still stays so
+            on_tree &= (np.abs(self.v).max(axis=1) > 1e-9) | (np.abs(self.p - self.rest).max(axis=1) > 1e-9)
         falling = self.fate == Fate.FALLING
         for k in range(steps):
             tk = self.t + (k + 1) * dt
@@ -337,35 +364,30 @@ class FruitWorld:
                                   f'({local[0] * 100:.1f}, {local[1] * 100:.1f}, {local[2] * 100:.1f}) cm from the '
                                   'grasp point, outside the fingers'))
 
-    def _knocks(self, t, segs, radii, gripper_links, tool, events):
-        """Links touching apples: each contact pushes the apple out of the link; its start is a knock."""
+    def _knocks(self, t, segs, radii, names, pairs, events):
+        """Links touching apples (of the candidate ``pairs`` and those touching at the last sample): each contact
+        pushes the apple out of the link; its start is a knock."""
         touching = set()
-        loose = np.flatnonzero((self.fate == Fate.ON_TREE) | (self.fate == Fate.FALLING))
-        if len(loose):
-            d = segment_distances(self.p[loose, None], self.p[loose, None], segs[None, :, 0], segs[None, :, 1])
-            gap = d - radii[None] - self.radius[loose, None]                       # (n, K)
-            near_grasp = self.settings.gripper.captures((self.p[loose] - tool[:3, 3]) @ tool[:3, :3])
-            for a, k in zip(*np.nonzero(gap < CONTACT_HYSTERESIS)):
-                i, k = int(loose[a]), int(k)
-                if k in gripper_links and (near_grasp[a] or self._opening_wide(i)):
-                    continue             # the open fingers around the apple they come for
-                if gap[a, k] >= 0.0 and (i, k) not in self._touching:
+        loose = (self.fate == Fate.ON_TREE) | (self.fate == Fate.FALLING)
+        pairs = sorted({(i, k) for i, k in [*pairs, *self._touching] if loose[i]})
+        if pairs:
+            i_s, k_s = np.array(pairs).T
+            gap = point_segment_distances(self.p[i_s], segs[k_s, 0], segs[k_s, 1]) - radii[k_s] - self.radius[i_s]
+            for i, k, g in zip(i_s.tolist(), k_s.tolist(), gap):
+                if g >= CONTACT_HYSTERESIS or (g >= 0.0 and (i, k) not in self._touching):
                     continue
                 touching.add((i, k))
-                if gap[a, k] >= 0.0:
+                if g >= 0.0:
                     continue             # still against the link, not in it
                 speed = self._link_speed(t, segs, k)
                 if (i, k) not in self._touching:
                     self.knocks[i] += 1
-                    events.append(self._event(t, i, 'knocked', f'touched by link {k} at {speed:.2f} m/s'))
+                    events.append(self._event(t, i, 'knocked', f'touched by {names[k]} at {speed:.2f} m/s'))
                     if speed > self.settings.bruise_speed:
-                        self._bruise(t, i, speed, f'a knock by link {k}', self.settings.bruise_speed, events)
+                        self._bruise(t, i, speed, f'a knock by {names[k]}', self.settings.bruise_speed, events)
                 if self._push_out(i, segs[k], radii[k], speed):
-                    events.append(self._event(t, i, 'knocked off', f'link {k} tore it off its stem: falling'))
+                    events.append(self._event(t, i, 'knocked off', f'{names[k]} tore it off its stem: falling'))
         self._touching = touching
-
-    def _opening_wide(self, i):
-        return self._opening is not None and self._opening > 2 * self.radius[i]
 
     def _link_speed(self, t, segs, k):
         if self._links is None or t <= self._links[0]:
@@ -398,3 +420,4 @@ class FruitWorld:
 
     def _event(self, t, i, kind, words):
         return Event(t, int(i), kind, self.p[i].copy(), f'apple {i}: {kind}: {words}')
+

@@ -24,8 +24,8 @@ def pose(p):
 
 
 class Arm:
-    """A tool the test moves (its pose and finger opening), with one capsule: the wrist behind the tool
-    (the gripper's) and, optionally, a rod anywhere (another link)."""
+    """A tool the test moves (its pose and finger opening), with two capsules: the wrist behind the tool and a
+    rod (another link) the test places."""
 
     def __init__(self, w, at, rod=None):
         self.w, self.t, self.at, self.opening, self.rod = w, 0.0, np.asarray(at, float), OPEN, rod
@@ -47,7 +47,7 @@ class Arm:
             self.at, self.opening = start + s * (end - start), o0 + s * (o1 - o0)
             self.t += DT
             self.events += self.w.observe([self.t], [pose(self.at)], [self.opening], [self.links()],
-                                          np.array([0.06, 0.03]), gripper_links=(0,))
+                                          np.array([0.06, 0.03]), ['wrist', 'rod'])
         return self
 
     def kinds(self):
@@ -82,7 +82,7 @@ def test_an_apple_grasped_pulled_off_carried_and_let_go_over_the_box_lands_in_it
     arm.run(1.5, to=[0.05, -0.55, 0.30]).run(0.25, opening=OPEN).run(1.0)
     assert arm.kinds()[-2:] == ['released', 'in the box'], arm.kinds()
     assert arm.w.fate[0] == Fate.IN_BOX and not arm.w.bruised[0]
-    assert arm.w.counts()['in the box'] == 1
+    assert arm.w.counts()['in_the_box'] == 1
 
 
 def test_an_apple_let_go_beside_the_box_is_dropped_on_the_ground_and_bruised():

@@ -109,6 +109,15 @@ def segment_distances(p0, p1, q0, q1):
     return np.sqrt(np.einsum('...i,...i', gap, gap))
 
 
+def point_segment_distances(p, a, b):
+    """The distances from points ``p`` to the segments ``a``-``b`` (arrays (..., 3), broadcast), m: fewer steps
+    than :func:`segment_distances` where one side is a point."""
+    ab, ap = b - a, p - a
+    s = np.clip(np.einsum('...i,...i', ap, ab) / np.maximum(np.einsum('...i,...i', ab, ab), 1e-18), 0.0, 1.0)
+    gap = ap - s[..., None] * ab
+    return np.sqrt(np.einsum('...i,...i', gap, gap))
+
+
 def capsule_distances(A, ra, B, rb):
     """Surface distances (negative: overlap, m) between every capsule of ``A`` (..., Ka, 2, 3) and of
     ``B`` (..., Kb, 2, 3), radii ``ra`` (Ka,), ``rb`` (Kb,): shape (..., Ka, Kb)."""

@@ -1,0 +1,162 @@
+"""The apples a camera reports, fused into targets (pure core): what the planner harvests instead of the truth.
+
+Each frame's detections (centres with their covariance, in the arm's base frame) are associated with the
+tracks so far, nearest first within ``gate`` (less than half the spacing of apples on a tree; a swaying apple
+stays within it of where it hangs); an associated detection refines its track (a Kalman update of a point
+that may drift slowly: the estimate is where the apple hangs, the centre of any sway), any other starts a
+tentative track. A track seen ``confirm_hits`` times is confirmed: a target. A tentative track not seen for
+``tentative_for`` s is dropped (a false positive seldom repeats), a confirmed one after ``forget_after`` s (the
+apple left the tree, or stays hidden), or at once when the harvest took it (:meth:`FruitMap.picked`).
+
+Detections the map cannot use are counted with the reason: a frame with more than ``max_per_frame`` (a flood),
+a score below ``min_score``, a centre inside a branch.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from .kinematics.capsules import point_segment_distances
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """``gate`` m (the farthest a detection joins a track), ``drift`` m/√s (how fast where an apple hangs may
+    change: the position's process noise), ``sway`` m (how far about where it hangs a detection may find it: a
+    standard deviation added to each detection's), ``confirm_hits``, ``tentative_for`` and ``forget_after`` s,
+    ``max_per_frame``, ``min_score``."""
+
+    gate: float = 0.04
+    drift: float = 0.002
+    sway: float = 0.01
+    confirm_hits: int = 5
+    tentative_for: float = 0.5
+    forget_after: float = 5.0
+    max_per_frame: int = 60
+    min_score: float = 0.5
+
+
+@dataclass
+class Track:
+    """An apple seen: ``id``, its position estimate ``x`` (3,) and covariance ``P`` (3, 3) (base frame, m), its
+    diameter (m), ``hits``, when first and last seen (s)."""
+
+    id: int
+    x: np.ndarray
+    P: np.ndarray
+    diameter: float
+    hits: int
+    first: float
+    last: float
+    confirmed: bool = False
+
+
+class FruitMap:
+    """Tracks of the apples seen (see the module); ``branches``: ``(ends (M, 2, 3), radii (M,))`` a centre inside
+    which is refused."""
+
+    def __init__(self, settings=MapSettings(), branches=None):
+        self.settings = settings
+        self.tracks = []
+        self.branches = branches
+        self.refused = Counter()
+        self.frames = self.detections = 0
+        self._ids = itertools.count(1)
+        self._t = None
+
+    def update(self, t, positions, covariances, diameters=None, scores=None):
+        """One frame at ``t`` (s): ``positions`` (N, 3) and ``covariances`` (N, 3, 3), base frame; returns the
+        reasons of the detections it refused (a Counter)."""
+        s = self.settings
+        positions = np.asarray(positions, float).reshape(-1, 3)
+        covariances = np.asarray(covariances, float).reshape(-1, 3, 3)
+        n = len(positions)
+        diameters = np.full(n, np.nan) if diameters is None else np.asarray(diameters, float)
+        scores = np.ones(n) if scores is None else np.asarray(scores, float)
+        self.frames += 1
+        self.detections += n
+        refused = Counter()
+        self._predict(t)
+        if n > s.max_per_frame:
+            refused[f'a frame of more than {s.max_per_frame} detections (a flood): the frame ignored'] += n
+            self.refused.update(refused)
+            self._expire(t)
+            return refused
+        keep = np.ones(n, bool)
+        low = scores < s.min_score
+        refused[f'a score below {s.min_score:g}'] += int(low.sum())
+        keep &= ~low
+        if self.branches is not None and len(self.branches[0]) and keep.any():
+            inside = self._inside_branch(positions)
+            refused['a centre inside a branch'] += int((inside & keep).sum())
+            keep &= ~inside
+        self._associate(t, positions[keep], covariances[keep], diameters[keep])
+        self._expire(t)
+        refused = +refused
+        self.refused.update(refused)
+        return refused
+
+    def targets(self):
+        """The confirmed tracks, oldest first."""
+        return [k for k in self.tracks if k.confirmed]
+
+    def picked(self, track_id):
+        """The harvest took the apple of ``track_id``: it is no longer on the tree."""
+        self.tracks = [k for k in self.tracks if k.id != track_id]
+
+    def counts(self):
+        return {'frames': self.frames, 'detections': self.detections, 'tracks': len(self.tracks),
+                'confirmed': len(self.targets()), 'refused': sum(self.refused.values())}
+
+    # -- inside ---------------------------------------------------------------------------------------------
+    def _predict(self, t):
+        if self._t is not None and t > self._t:
+            grow = self.settings.drift ** 2 * (t - self._t) * np.eye(3)
+            for k in self.tracks:
+                k.P = k.P + grow
+        self._t = t if self._t is None else max(self._t, t)
+
+    def _associate(self, t, z, R, diameters):
+        s = self.settings
+        free = list(range(len(z)))
+        if self.tracks and len(z):
+            X = np.array([k.x for k in self.tracks])
+            dist = np.linalg.norm(z[:, None] - X[None], axis=2)                 # (N, T)
+            cost = np.where(dist <= s.gate, dist, np.inf)
+            used_tracks = set()
+            for flat in np.argsort(cost, axis=None):
+                i, j = np.unravel_index(flat, cost.shape)
+                if not np.isfinite(cost[i, j]):
+                    break
+                if i not in free or j in used_tracks:
+                    continue
+                self._refine(self.tracks[j], t, z[i], R[i], diameters[i])
+                free.remove(i)
+                used_tracks.add(j)
+        for i in free:
+            self.tracks.append(Track(next(self._ids), z[i].copy(), R[i].copy(), float(diameters[i]), 1, t, t,
+                                     s.confirm_hits <= 1))
+
+    def _refine(self, k, t, z, R, diameter):
+        K = k.P @ np.linalg.inv(k.P + R + self.settings.sway ** 2 * np.eye(3))
+        k.x = k.x + K @ (z - k.x)
+        k.P = (np.eye(3) - K) @ k.P
+        k.hits += 1
+        k.last = t
+        if np.isfinite(diameter):
+            k.diameter = diameter if not np.isfinite(k.diameter) else k.diameter + (diameter - k.diameter) / k.hits
+        k.confirmed = k.confirmed or k.hits >= self.settings.confirm_hits
+
+    def _expire(self, t):
+        s = self.settings
+        self.tracks = [k for k in self.tracks
+                       if t - k.last <= (s.forget_after if k.confirmed else s.tentative_for)]
+
+    def _inside_branch(self, p):
+        ends, radii = self.branches
+        d = point_segment_distances(p[:, None], ends[None, :, 0], ends[None, :, 1])
+        return (d < radii[None]).any(axis=1)
