@@ -15,7 +15,8 @@ for this goal only (the planner's ``method`` / ``path_method`` parameters are th
 default). ``harvest`` sends a tree's apples on ``harvest_targets``: a seeded
 synthetic tree (``--tree N``) or a file (``--file apples.yaml``: a YAML list of
 ``[x, y, z]`` positions, m, grasped along ``--rpy``, or of ``{position: [x, y, z],
-rpy: [r, p, y]}`` in degrees), and prints each apple as it is picked or skipped. ``tree`` sends the same,
+rpy: [r, p, y]}`` in degrees), or, with ``--seen``, asks the planner on ``harvest_seen`` to harvest the apples
+its fruit map has confirmed from the camera; it prints each apple as it is picked or skipped. ``tree`` sends the same,
 in the ``platform`` frame, to picking-harvester on ``tree_targets`` (several arms share it; ``--tree N``
 spans the canopy of every arm of ``--platform``/``--layout``). Add ``--ros-args -r __ns:=/arm2``
 to talk to another arm. Ctrl-C cancels the goal: the arm brakes to rest within its
@@ -44,6 +45,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
+from std_msgs.msg import Header
 
 from picking_common.poses import pose_msg
 from picking_common.status import stamp_key, status_values
@@ -90,6 +92,9 @@ def build_parser():
         tree = p.add_mutually_exclusive_group(required=True)
         tree.add_argument('--file', help='a YAML list of apples: [x, y, z] (m) or {position: [...], rpy: [...] (deg)}')
         tree.add_argument('--tree', type=int, metavar='N', help='a synthetic tree of N apples in the canopy')
+        if kind == 'harvest':
+            tree.add_argument('--seen', action='store_true', help="the apples the planner's fruit map has confirmed "
+                              "from the camera's detections (harvest_seen)")
         p.add_argument('--seed', type=int, default=0, help='of the synthetic tree (default 0)')
         p.add_argument('--rpy', type=float, nargs=3, default=[0.0, 90.0, 0.0], metavar=('R', 'P', 'Y'),
                        help='grasp orientation of apples given without one, degrees (default 0 90 0: along +x)')
@@ -215,6 +220,8 @@ def harvest_poses(args):
     saying what is wrong with them."""
     import yaml
     from scipy.spatial.transform import Rotation
+    if getattr(args, 'seen', False):
+        return []                             # the planner knows them
     if args.tree is not None:
         if args.tree < 1:
             raise ValueError('--tree needs at least one apple')
@@ -252,7 +259,10 @@ def harvest(args, node, poses):
     ``planner_status`` (``harvester_status``) to its end."""
     topic, status_topic, who = (('tree_targets', 'harvester_status', 'picking-harvester') if args.kind == 'tree'
                                 else ('harvest_targets', 'planner_status', 'picking-planner'))
-    pub = node.create_publisher(PoseArray, topic, BURST)
+    seen_apples = getattr(args, 'seen', False)
+    if seen_apples:
+        topic = 'harvest_seen'
+    pub = node.create_publisher(Header if seen_apples else PoseArray, topic, BURST)
     statuses = []
     node.create_subscription(DiagnosticStatus, status_topic, statuses.append, BURST)
     where = f'{node.get_namespace().rstrip("/")}/{topic}'
@@ -262,11 +272,16 @@ def harvest(args, node, poses):
         if not node.spin_until(lambda: pub.get_subscription_count() > 0, max(args.timeout - DISCOVERY, 0.0)):
             print(f'picking-goal: nobody subscribes to {where}', file=sys.stderr)
             return EXIT_TIMEOUT
-    msg = PoseArray(poses=[pose_msg(T) for T in poses])
-    msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
-    key, t_sent, seen = stamp_key(msg.header.stamp), time.monotonic(), 0
-    print(f'sent: a {"tree" if args.kind == "tree" else "harvest"} of {len(poses)} apples, goal {key} '
-          f'({status_topic} names it so)', flush=True)
+    if seen_apples:
+        msg = Header(stamp=node.get_clock().now().to_msg())
+        key, what = stamp_key(msg.stamp), 'a harvest of the apples seen'
+    else:
+        msg = PoseArray(poses=[pose_msg(T) for T in poses])
+        msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
+        key = stamp_key(msg.header.stamp)
+        what = f'a {"tree" if args.kind == "tree" else "harvest"} of {len(poses)} apples'
+    t_sent, seen = time.monotonic(), 0
+    print(f'sent: {what}, goal {key} ({status_topic} names it so)', flush=True)
 
     def news():
         """The next status of this goal (a resend when none came yet: discovery may drop the first)."""

@@ -6,7 +6,7 @@ stays within it of where it hangs); an associated detection refines its track (a
 that may drift slowly: the estimate is where the apple hangs, the centre of any sway), any other starts a
 tentative track. A track seen ``confirm_hits`` times is confirmed: a target. A tentative track not seen for
 ``tentative_for`` s is dropped (a false positive seldom repeats), a confirmed one after ``forget_after`` s (the
-apple left the tree, or stays hidden), or at once when the harvest took it (:meth:`FruitMap.picked`).
+apple left the tree, or stays hidden).
 
 Detections the map cannot use are counted with the reason: a frame with more than ``max_per_frame`` (a flood),
 a score below ``min_score``, a centre inside a branch.
@@ -103,10 +103,6 @@ class FruitMap:
     def targets(self):
         """The confirmed tracks, oldest first."""
         return [k for k in self.tracks if k.confirmed]
-
-    def picked(self, track_id):
-        """The harvest took the apple of ``track_id``: it is no longer on the tree."""
-        self.tracks = [k for k in self.tracks if k.id != track_id]
 
     def counts(self):
         return {'frames': self.frames, 'detections': self.detections, 'tracks': len(self.tracks),

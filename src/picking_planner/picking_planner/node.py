@@ -30,6 +30,7 @@ from picking_common.status import Diagnostics, Level
 from picking_common.tf import FrameError, FrameListener, stamp_seconds
 from picking_common.topics import LATCHED, NEWEST
 from picking_core.collision import Scene, World
+from picking_core.fruit_map import MapSettings
 from picking_core.goals.planning import GoalPlanner
 from picking_core.goals.runner import GoalRunner
 from picking_core.goals.start import Timing
@@ -41,6 +42,7 @@ from picking_description import default_urdf, scene_path
 from .inputs import GoalInputs
 from .link import ControllerLink
 from .parameters import COLLISION, PARAMS, PICK, SETTINGS
+from .seen import SeenApples
 
 
 class PlannerNode(Node):
@@ -69,6 +71,9 @@ class PlannerNode(Node):
         self.runner = GoalRunner(self.link, Timing(self.get_parameter('start_delay').value))
         self.link.runner = self.runner
         self.inputs = GoalInputs(self, self.runner, self.in_base)
+        self.seen = SeenApples(self, self.runner, lambda header, timeout: self.in_base(header, 'detections', timeout),
+                               MapSettings())
+        self.seen.branches(self.world.scene.rods())
         self.create_timer(0.1, self.runner.tick)
         # The world: a scene replaced whole by a latched MarkerArray, and the canopy by each cloud, built into its
         # octree on a thread of its own (a camera's clouds never wait for a plan, nor a plan for them).
@@ -87,15 +92,16 @@ class PlannerNode(Node):
         """The goal planner of the moment (parameters may have changed the planner or the pick settings)."""
         return GoalPlanner(self.planner, self.pick, self.world)
 
-    def in_base(self, header, what='goal'):
+    def in_base(self, header, what='goal', timeout=None):
         """The 4x4 transform from a message's frame to the arm's base (its stamp's, 0: the latest), waiting up to
-        ``transform_timeout`` s for it; ValueError naming the frames and why when there is none."""
+        ``timeout`` s (None: ``transform_timeout``) for it; ValueError naming the frames and why when there is
+        none."""
         frame = header.frame_id.lstrip('/')
         if frame in ('', self.arm.base_frame, self.base_tf):
             return np.eye(4)
         try:
             return self.frames.transform(self.base_tf, frame, stamp_seconds(header.stamp),
-                                         self.get_parameter('transform_timeout').value)
+                                         self.get_parameter('transform_timeout').value if timeout is None else timeout)
         except FrameError as exc:
             raise ValueError(f'{what} in frame {frame!r}: {exc}') from None
 
@@ -111,6 +117,7 @@ class PlannerNode(Node):
         if scene is None:
             return
         self.world.replace(scene=scene)
+        self.seen.branches(scene.rods())
         self.get_logger().info(f'scene replaced from the scene topic: avoiding {self.world.words()}')
         self.runner.world_changed()
 
@@ -144,11 +151,11 @@ class PlannerNode(Node):
         why = self.runner.blocked()
         flying = len(self.runner.lifecycle.flights)
         if why is not None and 'not answered' not in why:
-            return [('planner', Level.WARN, why, {'goals_in_flight': flying})]
+            return [('planner', Level.WARN, why, {'goals_in_flight': flying}), self.seen.diagnose()]
         words = f'{flying} goal{"s" if flying != 1 else ""} in flight' if flying else 'ready, no goal in flight'
         s = self.planner.settings
         return [('planner', Level.OK, f'{words}; method {s.method}, path_method {s.path_method}',
-                 {'goals_in_flight': flying, **self.runner.retargets})]
+                 {'goals_in_flight': flying, **self.runner.retargets}), self.seen.diagnose()]
 
     def destroy_node(self):
         self._clouds.stop()

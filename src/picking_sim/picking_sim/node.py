@@ -7,6 +7,11 @@ at ``publish_rate``, like a real arm driver (the URDF and the frames are the sta
 As a witness (picking_sim.witness), it reports every contact of the arm with the scene
 (``scene_file``, or the latched ``scene`` topic) on ``sim_contacts``, and draws that scene on
 ``world_markers`` (latched, in the arm's base frame) for viewers.
+
+With a ``tree``, its apples are bodies (picking_core.fruit) judged from the published joint states: every
+grasp, detachment, drop, missed grasp, knock and bruise on ``fruit_events`` and the tally on ``/diagnostics``;
+their true positions on ``fruit_truth`` (for tests and viewers only); and a depth camera (picking_core.camera)
+reports what it sees of them on ``detections`` (vision_msgs/Detection3DArray) in its frame, on /tf_static.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ from picking_core.kinematics import ArmModel
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_description import default_urdf, scene_path
 
+from .fruit_node import FruitSim
 from .parameters import PARAMS
 from .servo import Servo, ServoParams
 from .witness import Witness
@@ -114,13 +120,16 @@ class SimNode(Node):
         self.loop = PeriodicLoop(self.servo.dt * STEPS_PER_WAKE, self._tick, name='servo', logger=self.get_logger(),
                                  phase=p['loop_phase'], priority=p['thread_priority'], on_stall=self._say_stalled,
                                  catch_up_yield=CATCH_UP_YIELD)
+        self.base_tf = p['frame_prefix'] + self.arm.base_frame
         # The witness: measured positions, as published, checked against the scene with no clearance.
         scene = Scene.from_yaml(p['scene_file'] or scene_path('workcell'))
+        self.fruit = FruitSim.from_parameters(self, p, scene)
+        if self.fruit is not None and self.fruit.tree_scene is not None:
+            scene = self.fruit.tree_scene             # a tree among branches: they are in the world too
         self.witness = Witness(CollisionChecker(ArmCapsules.from_arm(self.arm), scene, clearance=0.0,
                                                 self_check=False))
         self._watched = collections.deque(maxlen=int(10 * p['publish_rate']))
         self.pub_contacts = self.create_publisher(DiagnosticStatus, 'sim_contacts', BURST)
-        self.base_tf = p['frame_prefix'] + self.arm.base_frame
         # /tf is listened to from the first scene in another frame on: every arm's frames cost each listener its
         # share of a core, and the simulator needs them only for such a scene (a camera's mount is static).
         self.frames = None
@@ -131,6 +140,8 @@ class SimNode(Node):
         self.create_timer(1.0 / WITNESS_RATE, self._watch)
         self.diagnostics = Diagnostics(self, self.arm.name, self._diagnose)
         self.loop.start()
+        if self.fruit is not None:
+            self.fruit.start()
         self.get_logger().info(
             f'simulating {self.arm.name} ({n} joints) at {p["servo_rate"]:g} Hz, '
             f'publishing joint_states at {p["publish_rate"]:g} Hz from {np.round(q0, 4).tolist()}')
@@ -214,6 +225,8 @@ class SimNode(Node):
         nanosec = min(int(round((t_state - sec) * 1e9)), 999_999_999)
         self.pub_states.publish(self._writer.write(sec * 1_000_000_000 + nanosec, q, self.servo.qd, self.servo.torque))
         self._watched.append((t_state, self.servo.q[:self.arm.dof].copy()))
+        if self.fruit is not None:
+            self.fruit.samples.append((t_state, self.servo.q.copy()))
 
     def _in_base(self, header):
         """The transform of a scene marker's frame into the arm's base, from /tf (ValueError when there is none)."""
@@ -234,6 +247,8 @@ class SimNode(Node):
         if scene is None:
             return
         self.witness.checker = self.witness.checker.replaced(scene=scene)
+        if self.fruit is not None:
+            self.fruit.scene_changed(scene)
         self.pub_world.publish(scene_markers(scene, self.base_tf))
         self.get_logger().info(f'watching the arm against {len(scene)} obstacles from the scene topic')
 
@@ -269,10 +284,14 @@ class SimNode(Node):
         out.append(('contacts', Level.ERROR if self.witness.open else Level.OK,
                     f'{n} contacts with the scene since the start' + (', one now' if self.witness.open else ''),
                     {'contacts': n}))
+        if self.fruit is not None:
+            out.append(self.fruit.diagnose())
         return out
 
     def close(self):
         self.loop.stop()
+        if self.fruit is not None:
+            self.fruit.stop()
         self.commands.destroy()
         if self.frames is not None:
             self.frames.destroy()

@@ -34,6 +34,31 @@ PARAMS = (
     Param('servo.max_torque', 400.0, 'motor torque saturation', 'N m', (0.1, 100000.0), read_only=True),
     Param('servo.velocity_margin', 1.2, 'the drive saturates at this times the URDF velocity limit (plans use up to '
           '1x)', '', (1.0, 10.0), read_only=True),
+    Param('tree', '', "the apples the simulator hangs: 'orchard N SEED' (a tree among branches, its branches added to "
+          "the scene), 'synthetic N SEED', a YAML file of 'apples: [[x, y, z], ...]' (m, base frame); empty: none",
+          read_only=True),
+    Param('fruit_seed', 0, "seed of the apples' diameters (6 to 8.5 cm) and stems (3 to 6 cm)", '', (0, 2 ** 31 - 1),
+          read_only=True),
+    Param('wind.amplitude', 0.0, 'the sway: horizontal push on each apple at its peak', 'm/s^2', (0.0, 100.0),
+          read_only=True),
+    Param('wind.frequency', 0.5, 'the sway\'s frequency', 'Hz', (0.0, 20.0), read_only=True),
+    Param('wind.direction', 0.0, 'where the wind blows to, about z from x', 'rad', (-7.0, 7.0), read_only=True),
+    Param('wind.gust_rate', 0.0, 'gusts a second, on average (each within 45 degrees of the wind)', '1/s', (0.0, 10.0),
+          read_only=True),
+    Param('wind.gust_strength', 0.0, "a gust's push at its peak", 'm/s^2', (0.0, 100.0), read_only=True),
+    Param('wind.seed', 0, "seed of the apples' phases and the gusts", '', (0, 2 ** 31 - 1), read_only=True),
+    Param('camera.enabled', True, 'the depth camera reports detections of the apples (with a tree)', read_only=True),
+    Param('camera.frame', 'camera_optical_frame', "the camera's optical frame (z forward, x right, y down), on "
+          "/tf_static under the arm's base, prefixed with frame_prefix", read_only=True),
+    Param('camera.position', [0.1, 0.6, 1.3], "the camera's position", 'm', read_only=True),
+    Param('camera.look_at', [0.68, 0.0, 0.62], 'the point it looks at', 'm', read_only=True),
+    Param('camera.rate', 30.0, 'frames a second', 'Hz', (0.1, 1000.0), read_only=True),
+    Param('camera.latency', 0.05, 'from capture (the stamp) to publication', 's', (0.0, 5.0), read_only=True),
+    Param('camera.noise', 0.003, 'standard deviation of each coordinate of a detected centre', 'm', (0.0, 1.0),
+          read_only=True),
+    Param('camera.false_positives', 0.0, 'false detections a frame, on average', '', (0.0, 1000.0), read_only=True),
+    Param('camera.occlusion', True, 'apples hidden by a branch, the arm or another apple are not seen', read_only=True),
+    Param('camera.seed', 0, "seed of the camera's noise and false positives", '', (0, 2 ** 31 - 1), read_only=True),
     Param('scene_file', '', 'the obstacles the simulator watches the arm against, as the planner\'s scene_file (empty: '
           'the shipped picking_description/scenes/workcell_scene.yaml); the scene topic replaces it', read_only=True),
 )

@@ -140,6 +140,11 @@ class Scene:
         branch = np.array([o.kind == 'branch' for o in self.obstacles], bool)
         return lo, hi, ends, radius, branch
 
+    def rods(self):
+        """The branches and wires: ``(ends (M, 2, 3), radii (M,))``, m."""
+        rods = [o for o in self.obstacles if o.ends is not None]
+        return np.array([o.ends for o in rods], float).reshape(-1, 2, 3), np.array([o.radius for o in rods], float)
+
     @classmethod
     def from_dict(cls, d, where='scene'):
         """From a scene file's mapping: ``frame``, ``ground_z`` (m, or absent), and lists

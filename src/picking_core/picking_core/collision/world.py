@@ -27,6 +27,11 @@ class World:
             return self._checker if self.enabled else None
 
     @property
+    def scene(self):
+        """The newest scene."""
+        return self._checker.scene
+
+    @property
     def canopy(self):
         return self._checker.canopy
 
