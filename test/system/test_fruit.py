@@ -88,3 +88,42 @@ def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path)
         last = status_values(events[-1])
         assert (last['bruised'], last['missed_grasps'], last['dropped']) == ('0', '0', '0'), last
         assert 'apples seen' in stack.planner.output()
+
+
+def test_bad_detections_are_counted_with_their_reason_and_harvest_seen_without_apples_is_refused(tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from std_msgs.msg import Header
+
+    from picking_common.vision import detections_msg
+    from picking_core.camera import Detection
+    with running_stack('/fruit3', tmp_path) as (stack, client):
+        arrays = []
+        client.create_subscription(DiagnosticArray, '/diagnostics', arrays.append, 10)
+        pub = client.create_publisher(Detection3DArray, 'detections', 10)
+        client.wait_for(lambda: pub.get_subscription_count() > 0, 20.0, 'the planner to subscribe to detections')
+        one = [Detection(np.array([0.7, 0.0, 0.6]), 0.07, 0.9, 0.003, 0)]
+        stamp = client.get_clock().now().nanoseconds
+        nan = detections_msg(one, 'fruit3/base_link', stamp)
+        nan.detections[0].results[0].pose.pose.position.x = float('nan')
+        flood = detections_msg(one * 100, 'fruit3/base_link', stamp)
+        lost = detections_msg(one, 'nowhere', stamp)
+        for msg in (nan, flood, lost):
+            pub.publish(msg)
+
+        def fruit_map():
+            for array in reversed(arrays):
+                for s in array.status:
+                    if s.name == 'fruit3/picking_planner: fruit map' and 'not finite' in s.message and \
+                            'flood' in s.message and "'nowhere'" in s.message:
+                        return s
+            return None
+        report = client.wait_for(fruit_map, 10.0, 'the fruit map to count the refusals')
+        assert status_values(report)['refused'] == '102' and status_values(report)['confirmed'] == '0', report.message
+
+        seen = client.create_publisher(Header, 'harvest_seen', BURST)
+        client.wait_for(lambda: seen.get_subscription_count() > 0, 20.0, 'the planner to subscribe to harvest_seen')
+        mark = client.mark()
+        seen.publish(Header(stamp=client.get_clock().now().to_msg()))
+        refused = client.wait_for(lambda: [m for _, m in client.planner_status[mark['planner']:]
+                                           if status_values(m).get('state') == 'refused'], 10.0, 'the refusal')[0]
+        assert 'no apples seen' in refused.message

@@ -1,0 +1,61 @@
+"""The simulator's tree and camera clock without ROS: tree descriptions, the arm as the apples see it (fingers at
+the opening), and frames released after their latency in capture order."""
+
+import numpy as np
+import pytest
+
+from picking_core.collision import Scene
+from picking_core.kinematics import ArmModel
+from picking_core.kinematics.capsules import ArmCapsules
+from picking_core.pick_cycle import HOME_POSITIONS
+from picking_description import default_urdf, scene_path
+from picking_sim.orchard import ArmSamples, Frames, fruit_world, tree_centres
+
+
+@pytest.fixture(scope='module')
+def arm():
+    return ArmModel.from_urdf(default_urdf())
+
+
+def test_trees_come_from_the_generators_or_a_file_and_bad_ones_are_refused_with_the_reason(arm, tmp_path):
+    workcell = Scene.from_yaml(scene_path('workcell'))
+    centres, scene = tree_centres('orchard 6 1', arm, workcell, HOME_POSITIONS)
+    assert centres.shape == (6, 3) and any(o.name.startswith('twig') or o.kind == 'branch' for o in scene.obstacles)
+    assert tree_centres('synthetic 4 2')[0].shape == (4, 3) and tree_centres('')[0].shape == (0, 3)
+    path = tmp_path / 'tree.yaml'
+    path.write_text('apples: [[0.7, 0.1, 0.6], [0.65, -0.1, 0.5]]\n')
+    assert tree_centres(str(path))[0] == pytest.approx(np.array([[0.7, 0.1, 0.6], [0.65, -0.1, 0.5]]))
+    for bad, why in (('orchard 6', 'give'), ('synthetic x 1', 'integers'), ('nowhere.yaml', 'no such file')):
+        with pytest.raises(ValueError, match=why):
+            tree_centres(bad, arm, workcell, HOME_POSITIONS)
+    path.write_text('apples: [[0.7, .nan, 0.6]]\n')
+    with pytest.raises(ValueError, match='finite'):
+        tree_centres(str(path))
+
+
+def test_the_world_needs_the_scenes_fruit_box():
+    with pytest.raises(ValueError, match='fruit box'):
+        fruit_world(np.zeros((1, 3)), Scene())
+    w = fruit_world(np.array([[0.7, 0.1, 0.6]]), Scene.from_yaml(scene_path('workcell')), seed=3)
+    assert 0.03 <= w.radius[0] <= 0.0425 and w.box[0][2] < w.box[1][2] and w.ground_z == pytest.approx(-0.45)
+
+
+def test_the_fingers_stand_at_the_opening_either_side_of_the_grasp_point(arm):
+    samples = ArmSamples(arm, ArmCapsules.from_arm(arm), list(arm.all_joint_names))
+    tools, openings, links = samples(np.array([[*HOME_POSITIONS, 0.07]]))
+    tool = tools[0]
+    fingers = (links[0, -2:] - tool[:3, 3]) @ tool[:3, :3]               # in the tool frame
+    assert fingers[:, :, 0] == pytest.approx(np.array([[0.045, 0.045], [-0.045, -0.045]]))
+    assert fingers[:, 0, 2] == pytest.approx([-0.06, -0.06]) and fingers[:, 1, 2] == pytest.approx([0.0, 0.0])
+    assert openings[0] == 0.07 and samples.names[-2:] == ['a finger', 'a finger']
+    assert 'wrist_3_link' not in samples.names and len(samples.radii) == links.shape[1]
+
+
+def test_frames_go_out_after_their_latency_in_capture_order():
+    clock = Frames(rate=30.0, latency=0.05, t0=10.0)
+    assert clock.wake() == 10.0
+    clock.hold(10.0, 'a')
+    clock.hold(10.033, 'b')
+    assert clock.due(10.04) == [] and clock.wake() == pytest.approx(10.0)   # the next capture is due first
+    clock.next_capture = 10.066
+    assert clock.wake() == pytest.approx(10.05) and clock.due(10.09) == ['a', 'b']
