@@ -43,17 +43,19 @@ def run_ros_part(args, config, out, demo, stack_initial):
     from .recording import Recorder
 
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    # The arm as picking-stack brings it up, at the pick cycle's home, its logs beside the report.
+    # The arm as picking-stack brings it up, at the pick cycle's home, its logs beside the report; the simulator
+    # hangs the apples the scenarios pick (scenario 3's tree, then scenario 1's apple) and counts what they become.
+    tree = write_tree(out / 'tree.yaml', demo)
     stack = Stack('/', out / 'logs', config=config, args={
-        'picking-sim': ['-p', 'initial_positions:=[' + ','.join(map(str, stack_initial)) + ']']})
+        'picking-sim': ['-p', 'initial_positions:=[' + ','.join(map(str, stack_initial)) + ']', '-p', f'tree:={tree}']})
     for name, p in stack.nodes.items():
         log(f'started {name} (pid {p.pid})')
     events = {'ok': False}
     rclpy.init()
     node = rclpy.create_node(f'picking_demo_{os.getpid()}')
     rec = Recorder(node, {'planned_trajectory': JointTrajectory, 'planned_path': PathMsg,
-                          'planner_status': DiagnosticStatus, 'controller_status': DiagnosticStatus},
-                   reliable)
+                          'planner_status': DiagnosticStatus, 'controller_status': DiagnosticStatus,
+                          'fruit_events': DiagnosticStatus}, reliable)
     # The 100 Hz and 1 kHz streams as sensor data: a recorder must never slow the arm down.
     rec.add(node, {'joint_states': JointState, 'joint_commands': JointState}, qos_profile_sensor_data)
     rec.add_frames(node)
@@ -95,6 +97,19 @@ def run_ros_part(args, config, out, demo, stack_initial):
         for name, code in events['exit_codes'].items():
             log(f'stopped {name} (pid {stack.nodes[name].pid}): exit code {code}')
     return rec, events
+
+
+def write_tree(path, demo):
+    """The simulator's tree file: scenario 3's synthetic tree (apples 0 to n - 1, in its order), then scenario 1's
+    apple (apple n)."""
+    import yaml
+
+    from picking_core.harvest import synthetic_tree
+    n, seed = int(demo.get('harvest_apples', 20)), int(demo.get('harvest_seed', 1))
+    apples = [[float(v) for v in T[:3, 3]] for T in synthetic_tree(n, seed=seed)] + [
+        [float(v) for v in demo['apple_position']]]
+    path.write_text(yaml.safe_dump({'apples': apples}, default_flow_style=None))
+    return path
 
 
 def run_pick_scenario(node, pick, rec, demo, spin_until, events):

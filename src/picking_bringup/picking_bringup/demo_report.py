@@ -488,8 +488,43 @@ def harvest_section(rec, event, arm, out):
              '`demo.mcap` holds the tree as visualization_msgs/MarkerArray on `harvest_markers`.']
     checks = {'the harvest succeeded': final.get('state') == 'succeeded',
               'every apple picked or skipped with a reason': len(order) + len(said['skipped']) == len(apples)}
+    world_lines, world_checks = world_section(rec, order, len(apples))
+    lines += world_lines
+    checks.update(world_checks)
     lines += ['', *[f'- {k}: {"yes" if v else "NO"}' for k, v in checks.items()]]
     return lines, path, checks
+
+
+def world_section(rec, claimed, n):
+    """What the simulator counted of the tree's apples ``0 .. n - 1`` (its ``fruit_events``) beside the planner's
+    ``claimed`` picks: ``(lines, checks)``. An apple claimed but not in the box is a failure, in red."""
+    fates, worst = {}, {}
+    for _, m in rec.messages('fruit_events'):
+        v = status_values(m)
+        i = int(v['apple'])
+        fates.setdefault(i, []).append(v['event'])
+    in_box = sorted(i for i, e in fates.items() if 'in the box' in e and i < n)
+    rows = []
+    for word in ('in the box', 'dropped', 'knocked', 'knocked off', 'bruised', 'missed grasp'):
+        who = sorted(i for i, e in fates.items() if word in e and i < n)
+        worst[word] = who
+        rows.append((word, len(who), ', '.join(map(str, who)) or '-'))
+    left = sorted(set(range(n)) - {i for i, e in fates.items() if 'detached' in e or 'knocked off' in e})
+    rows.append(('left on the tree', len(left), ', '.join(f'{i} (not picked)' for i in left) or '-'))
+    wrong = sorted(set(claimed) - set(in_box))
+    lines = ['', "What the simulator counted (`fruit_events`: it judges the measured joint states alone; the planner's "
+             f'claims are its `picked` statuses): {len(claimed)} apples claimed picked, **{len(in_box)} in the box**.', '',
+             _table(['fate', 'apples', 'which'], rows)]
+    if wrong:
+        lines += ['', f'<span style="color:red">Claimed picked but not in the box: {", ".join(map(str, wrong))}</span>']
+    first = fates.get(n, [])
+    lines += ['', f"Scenario 1's apple (apple {n} of the simulator's tree): {', '.join(first) or 'nothing happened to it'}."]
+    if worst['bruised'] or worst['knocked']:
+        lines += ['', f"The planner avoids the scene, not the apples it is not picking: the arm knocked "
+                  f"{len(worst['knocked'])} of them on the way, {len(worst['bruised'])} faster than the bruising speed."]
+    checks = {"every apple the planner calls picked is in the box by the simulator's count": not wrong and bool(in_box),
+              "scenario 1's apple is in the box (simulator)": 'in the box' in first}
+    return lines, checks
 
 
 def arc_section(rec, arc_event, arm, names):

@@ -36,6 +36,8 @@ MAX_STEP = 0.01
 NEAR = 0.05
 #: m an apple pushed aside by a link stays in that contact until this far from it (one knock, not one a sample).
 CONTACT_HYSTERESIS = 0.01
+#: m the fingers must close by to be a grasp (less is a drive settling at its set-point).
+MIN_CLOSURE = 0.01
 #: m the fingers open beyond an apple's width before it is let go.
 RELEASE_MARGIN = 0.005
 
@@ -178,6 +180,7 @@ class FruitWorld:
         self._opening = None
         self._closing = False            # the fingers closed at the last sample
         self._caught = False             # the closure under way caught an apple
+        self._closed_from = 0.0          # the opening the closure under way started from
         self._touching = set()           # (apple, link) pairs in contact at the last sample
         self._links = None               # the last sample's capsule segments, for their speed
 
@@ -346,8 +349,10 @@ class FruitWorld:
                 self.fate[i] = Fate.GRASPED
                 self._caught = True
                 events.append(self._event(t, int(i), 'grasped', f'the fingers closed on it at {opening * 100:.1f} cm'))
-        if self._closing and not closing:            # a closure ended
-            if not self._caught:
+        if closing and not self._closing:            # a closure starts from the opening before
+            self._closed_from = before
+        if self._closing and not closing:            # a closure ended: a real one (not a drive's settling) caught?
+            if not self._caught and self._closed_from - before >= MIN_CLOSURE:
                 self._missed(t, tool, events)
             self._caught = False
         self._closing = closing

@@ -100,8 +100,10 @@ def test_fingers_opened_before_the_stem_gives_leave_the_apple_on_the_tree():
     assert arm.kinds() == ['grasped', 'released on the tree'] and arm.w.fate[0] == Fate.ON_TREE
 
 
-def test_a_gripper_closing_beside_an_apple_is_a_missed_grasp_of_it():
+def test_a_gripper_closing_beside_an_apple_is_a_missed_grasp_of_it_and_a_drive_settling_is_not():
     arm = Arm(world(), APPLE + [0.0, 0.045, 0.0])           # 4.5 cm to the side: outside the fingers
+    arm.run(0.05, opening=OPEN - 0.002).run(0.05, opening=OPEN).run(0.05, opening=OPEN - 0.001)
+    assert arm.kinds() == []
     arm.run(0.25, opening=CLOSED).run(0.2)
     assert arm.kinds() == ['missed grasp'] and arm.w.misses[0] == 1 and arm.w.fate[0] == Fate.ON_TREE
     assert 'beside it' in arm.events[0].words
