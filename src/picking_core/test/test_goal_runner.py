@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from picking_core.collision import World
 from picking_core.collision.scene import Scene, rod
-from picking_core.goals.lifecycle import ANSWER_GRACE, LATE_REPLANS, OLD_HEADER_TIMESTAMP
+from picking_core.goals.lifecycle import ANSWER_GRACE, LATE_REPLANS, OLD_HEADER_TIMESTAMP, RESULT_RETRY
 from picking_core.goals.planning import GoalPlanner
 from picking_core.goals.requests import Goal, Kind, Target
 from picking_core.goals.runner import GoalRunner
@@ -27,7 +27,7 @@ class Port:
     def __init__(self, planner):
         self.t_wall, self.t = 0.0, 1000.0
         self.planner = planner
-        self.sent, self.canceled, self.statuses, self.logs = [], [], [], []
+        self.sent, self.canceled, self.statuses, self.logs, self.asked = [], [], [], [], []
         self.why, self.ref, self.meas = None, None, (HOME.copy(), 0.09)
 
     def wall(self):
@@ -53,6 +53,9 @@ class Port:
 
     def cancel(self, flight):
         self.canceled.append(flight)
+
+    def ask_result(self, flight):
+        self.asked.append(flight)
 
     def status(self, level, text, **values):
         message = dict(level=level, text=text, **values)
@@ -197,6 +200,26 @@ def test_a_plan_the_controller_does_not_answer_by_its_start_is_planned_again_and
     runner.on_response(again, True, handle=object())
     runner.on_result(again, 'succeeded', 0, '')
     assert port.states('g')[-1] == 'succeeded' and port.states('g').count('succeeded') == 1
+
+
+def test_a_result_overdue_is_asked_for_again_every_second_until_it_comes(port):
+    """A result response can be lost like a goal response: past the plan's end the result is asked for again,
+    once a second, and the goal ends with the first that comes."""
+    port.ref = ((HOME, np.zeros(6), np.zeros(6)), 0.09)
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    flight = accept(runner, port)
+    end = flight.start + flight.duration
+    port.t, port.t_wall = end + 0.5, 5.0
+    runner.tick()
+    assert port.asked == []                                         # not yet overdue
+    for wall in (6.0, 6.5, 7.1):
+        port.t, port.t_wall = end + RESULT_RETRY + 0.1 + (wall - 6.0), wall
+        runner.tick()
+    assert port.asked == [flight, flight]                            # at 6.0 and 7.1, not at 6.5
+    runner.on_result(flight, 'succeeded', 0, '')
+    runner.on_result(flight, 'succeeded', 0, '')                    # the second answer ends nothing
+    assert port.states('g').count('succeeded') == 1
 
 
 def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planned(port):

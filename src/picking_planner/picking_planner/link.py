@@ -119,6 +119,10 @@ class ControllerLink:
         if flight.handle is not None:
             flight.handle.cancel_goal_async()
 
+    def ask_result(self, flight):
+        if flight.handle is not None:
+            flight.handle.get_result_async().add_done_callback(partial(self._on_result, flight))
+
     def _on_response(self, flight, future):
         handle = future.result()
         self.runner.on_response(flight, handle.accepted, handle)
@@ -133,8 +137,10 @@ class ControllerLink:
 
     def _on_result(self, flight, future):
         response = future.result()
-        self.runner.on_result(flight, RESULT_WORDS.get(response.status, 'aborted'), response.result.error_code,
-                              response.result.error_string)
+        text = response.result.error_string
+        if response.status == GoalStatus.STATUS_UNKNOWN:
+            text = 'the controller does not know the goal (it restarted, or forgot it)'
+        self.runner.on_result(flight, RESULT_WORDS.get(response.status, 'aborted'), response.result.error_code, text)
 
     # -- what the planner says ------------------------------------------------------------------
     def status(self, level, text, **values):

@@ -27,6 +27,9 @@ RESPONSE_LIMIT = 10.0
 #: s after a plan's end that its result may take (the goal time tolerance and settling) before the goal
 #: is aborted.
 RESULT_MARGIN = 5.0
+#: s between two requests for a result overdue after the plan's end: a DDS service drops a response while the server
+#: has not yet discovered the client's reader, and a request made later is answered then.
+RESULT_RETRY = 1.0
 #: s a plan stamped 0 (where the controller puts it) may start after it was sent: the controller's bridge to it.
 BRIDGE_ALLOWANCE = 2.0
 #: Times a goal is planned again when the controller refused its plan as late, each time further ahead.
@@ -78,6 +81,7 @@ class Flight:
     superseded: bool = False      # a newer plan of ours was sent after it
     overtaken: bool = False       # ... and the controller accepted that one (it takes over from this)
     tracking_error: float = 0.0   # rad, the controller's newest feedback
+    asked: float = -1e9           # wall s its result was last asked for again
     elapsed: float | None = None  # s into the plan's points, the controller's newest feedback
     handle: object = None         # the controller's goal handle, once accepted
     cancel: bool = False          # its client asked to cancel it
@@ -183,6 +187,22 @@ class Lifecycle:
         if flight.state == State.EXECUTING or code not in (INVALID_GOAL, INVALID_JOINTS) or text.startswith('preempted'):
             return Ending(Outcome.ABORTED, f'the controller aborted it: {text}', code)
         return Ending(Outcome.REFUSED, f'the controller refused the plan: {text}', code)
+
+    def results_to_ask(self, wall, schedule_now):
+        """Flights the controller took whose result is overdue (past the plan's end), to ask for once more: each
+        every RESULT_RETRY s until it comes or :meth:`overdue` ends it."""
+        out = []
+        for flight in self.flights.values():
+            if flight.state == State.SENT or wall - flight.asked < RESULT_RETRY:
+                continue
+            if flight.start is not None:
+                due = schedule_now > flight.start + flight.duration + RESULT_RETRY
+            else:
+                due = wall - flight.sent > flight.duration + BRIDGE_ALLOWANCE + RESULT_RETRY
+            if due:
+                flight.asked = wall
+                out.append(flight)
+        return out
 
     def overdue(self, wall, schedule_now):
         """Flights the controller left unanswered too long, removed, with an Ending each. Not answered by the

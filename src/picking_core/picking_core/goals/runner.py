@@ -47,6 +47,7 @@ class Port(Protocol):
     def goal_planner(self): ...                  # the GoalPlanner of the moment (its settings may change)
     def send(self, flight, points, stamp): ...   # the plan's points (t, q, qd, qdd) to the controller, stamped
     def cancel(self, flight): ...                # cancel the flight's goal at the controller
+    def ask_result(self, flight): ...            # ask the controller for the flight's result (once more)
     def status(self, level, text, **values): ... # publish a planner_status; returns what was published
     def repeat(self, message): ...               # publish an earlier status again (a goal sent again)
     def log(self, level, text): ...
@@ -161,6 +162,8 @@ class GoalRunner:
     def tick(self):
         """A tenth of a second: the waiting goal, overdue answers, a running harvest's apples."""
         self._serve_waiting()
+        for flight in self.lifecycle.results_to_ask(self.port.wall(), self.schedule_now()):
+            self.port.ask_result(flight)
         for flight, ending in self.lifecycle.overdue(self.port.wall(), self.schedule_now()):
             if flight.handle is not None:
                 self.port.cancel(flight)
