@@ -262,9 +262,20 @@ def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
 SECOND_ARM_AT_250_HZ = {'sim_args': ('-p', 'servo_rate:=250.0'), 'controller_args': ('-p', 'update_rate:=250.0')}
 
 
+def planner_ready(client, ns, timeout=60.0):
+    """Until the planner in ``ns`` says on /diagnostics that it can plan (it has discovered its controller: a fresh
+    process on a saturated machine has taken over ten seconds)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    arrays = []
+    client.create_subscription(DiagnosticArray, '/diagnostics', arrays.append, 10)
+    client.wait_for(lambda: any(s.name == f'{ns.strip("/")}/picking_planner: planner' and s.level == DiagnosticStatus.OK
+                                for a in arrays for s in a.status), timeout, f'the planner in {ns} to be ready')
+
+
 def test_second_arm_in_its_own_namespace(arm1, tmp_path):
     _, client1 = arm1
     with running_stack('/sys2', tmp_path, **SECOND_ARM_AT_250_HZ) as (_, client2):
+        planner_ready(client2, '/sys2')
         before1 = client1.last_positions()
         reach(client2, lambda: client2.send_pose([0.5, 0.2, 0.35]))
         settles_at(client2, [0.5, 0.2, 0.35])

@@ -107,9 +107,10 @@ def test_tf_from_every_arm_is_each_arms_fk_in_the_platform_frame(platform):
             time.sleep(0.05)
         assert len(states) == len(p.arms), f'joint_states of arms {sorted(states)} only'
         for k, m in enumerate(p.arms):
-            state = states[k]                     # the tool from /tf at this state's stamp, against its FK
-            T = frames.transform(p.frame, f'{NS.strip("/")}/{m.namespace}/tool0', stamp_seconds(state.header.stamp),
-                                 10.0)
+            tool = f'{NS.strip("/")}/{m.namespace}/tool0'
+            frames.transform(p.frame, tool, 0.0, 10.0)   # /tf heard (it may come after the first joint states) ...
+            state = states[k]                     # ... then the tool at the newest state's stamp, against its FK
+            T = frames.transform(p.frame, tool, stamp_seconds(state.header.stamp), 10.0)
             q = reorder(state.name, state.position, arms[k].joint_names, 'joint_states')
             assert np.abs(T[:3, 3] - (m.base @ arms[k].fk(q))[:3, 3]).max() < 1e-4, m.namespace
     finally:
