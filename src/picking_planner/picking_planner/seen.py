@@ -31,7 +31,7 @@ class SeenApples:
     def __init__(self, node, runner, in_base, settings):
         self.node, self.runner, self.in_base = node, runner, in_base
         self.map = FruitMap(settings)
-        self.refused = Counter()
+        self.refused = Counter()                 # detections left out before the map: the map counts its own
         self.grasp = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
         node.create_subscription(Detection3DArray, 'detections', self._on_detections, 10)
         node.create_subscription(Header, 'harvest_seen', self._on_harvest, BURST)
@@ -53,9 +53,7 @@ class SeenApples:
         R = T[:3, :3]
         placed = positions @ R.T + T[:3, 3]
         covariances = R @ covariances @ R.T
-        for why, n in self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters,
-                                      scores).items():
-            self._refuse(why, n)
+        self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters, scores)
 
     def _refuse(self, why, n=1):
         self.refused[why] += n
@@ -79,9 +77,10 @@ class SeenApples:
     def diagnose(self):
         """For /diagnostics: the map's tallies and why detections were refused."""
         counts = self.map.counts()
+        refused = self.refused + self.map.refused        # before the map (the message, the frame) and in it
         words = (f"{counts['confirmed']} apples seen ({counts['tracks']} tracks) from {counts['detections']} "
                  f"detections in {counts['frames']} frames")
-        if self.refused:
-            words += '; refused: ' + ', '.join(f'{n} for {why}' for why, n in self.refused.most_common())
-        return 'fruit map', Level.OK, words, {**counts, 'refused': sum(self.refused.values())}
+        if refused:
+            words += '; refused: ' + ', '.join(f'{n} for {why}' for why, n in refused.most_common())
+        return 'fruit map', Level.OK, words, {**counts, 'refused': sum(refused.values())}
 
