@@ -506,6 +506,10 @@ def run(stack, args, stopping):
         for name, c in codes.items():
             pid = f' (pid {stack.nodes[name].pid})' if name in getattr(stack, 'nodes', {}) else ''
             print(f'picking-stack: stopped {name}{pid}: exit code {c}', flush=True)
+        asked = {p.name: p for p in stack.processes if p not in failed}
+        for name, c in codes.items():
+            if c != 0 and name in asked:
+                print(f'picking-stack: {name} did not stop cleanly; its log:\n{asked[name].tail()}', file=sys.stderr)
     return code if all(c == 0 for c in codes.values()) else 1
 
 

@@ -1,0 +1,62 @@
+"""picking-stack's run: the exit code and the logs it shows, with plain child processes for nodes."""
+
+import argparse
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+from picking_bringup.stack import NodeProcess, run
+
+#: Exits 1 when asked to stop, after saying why on its output (as a node's faulthandler would).
+UNCLEAN = ('import signal, sys, time\n'
+           'def bye(*_):\n'
+           '    print("a thread would not stop", flush=True)\n'
+           '    sys.exit(1)\n'
+           'signal.signal(signal.SIGINT, bye)\n'
+           'print("up", flush=True)\n'
+           'while True: time.sleep(0.05)\n')
+CLEAN = UNCLEAN.replace('sys.exit(1)', 'sys.exit(0)').replace('a thread would not stop', 'bye')
+
+
+class Stack:
+    """The part of a Stack that ``run`` uses."""
+
+    def __init__(self, log_dir, scripts):
+        self.log_dir, self.ns = log_dir, '/'
+        self.processes = [NodeProcess(Path(sys.executable).name, ['-c', s], log_dir / f'{i}.log')
+                          for i, s in enumerate(scripts)]
+        for i, p in enumerate(self.processes):        # exit codes go by name: each its own
+            p.name = f'{i}'
+
+    def wait_ready(self, timeout):
+        for p in self.processes:
+            deadline = time.monotonic() + timeout
+            while 'up' not in p.output() and time.monotonic() < deadline:
+                time.sleep(0.02)
+
+    def alive(self):
+        return {f'{i}': p.alive() for i, p in enumerate(self.processes)}
+
+    def stop(self):
+        return {f'{i}': p.stop(timeout=5.0) for i, p in enumerate(self.processes)}
+
+
+def args():
+    return argparse.Namespace(timeout=10.0, duration=0.2, platform=None, paper=False, foxglove=None)
+
+
+def test_a_node_that_does_not_stop_cleanly_fails_the_run_and_shows_its_log(tmp_path, capsys):
+    stack = Stack(tmp_path, [CLEAN, UNCLEAN])
+    assert run(stack, args(), threading.Event()) == 1
+    err = capsys.readouterr().err
+    assert '1 did not stop cleanly; its log:' in err and 'a thread would not stop' in err, err
+    assert '0 did not stop cleanly' not in err
+
+
+def test_nodes_that_stop_cleanly_give_0_and_no_log(tmp_path, capsys):
+    stack = Stack(tmp_path, [CLEAN, CLEAN])
+    assert run(stack, args(), threading.Event()) == 0
+    assert 'its log' not in capsys.readouterr().err
+    assert os.path.exists(tmp_path / '0.log')
