@@ -29,3 +29,18 @@ def test_a_detection_with_nan_a_bad_covariance_or_another_class_is_refused_with_
     positions, _, _, _, refused = read_detections(msg)
     assert len(positions) == 1 and len(refused) == 3
     assert 'not finite' in refused[0] and 'positive semi-definite' in refused[1] and '"apple"' in refused[2]
+
+
+@pytest.mark.parametrize('n', [0, 1, 7])
+def test_the_bytes_written_directly_are_the_message_the_middleware_writes(n):
+    from rclpy.serialization import deserialize_message
+    from vision_msgs.msg import Detection3DArray
+
+    from picking_common.vision import cdr_agrees, detections_cdr
+    rng = np.random.default_rng(n)
+    dets = [Detection(rng.normal(size=3), float(rng.uniform(0.05, 0.1)), float(rng.uniform()), 0.003 * (i + 1), i)
+            for i in range(n)]
+    frame, stamp = 'arm2/camera_optical_frame' [:n + 10], 1_700_000_123_000_000_007
+    ours = deserialize_message(detections_cdr(dets, frame, stamp), Detection3DArray)
+    assert ours == detections_msg(dets, frame, stamp)
+    assert cdr_agrees()

@@ -16,7 +16,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from picking_common.status import Level, status
 from picking_common.topics import BURST, LATCHED
-from picking_common.vision import detections_msg
+from picking_common.vision import cdr_agrees, detections_cdr, detections_msg
 from picking_core.camera import CameraSettings, DepthCamera, look_at
 from picking_core.fruit import Fate, Wind
 from picking_core.kinematics.capsules import ArmCapsules
@@ -56,10 +56,13 @@ class FruitSim:
 
             from .state_publisher import transform_msg
             self.pub_detections = node.create_publisher(Detection3DArray, 'detections', 10)
+            self._encode = detections_cdr if cdr_agrees() else detections_msg
             self.pub_static = node.create_publisher(TFMessage, '/tf_static', LATCHED)
             self.pub_static.publish(TFMessage(transforms=[transform_msg(node.base_tf, camera_frame, camera.mount,
                                                                         node.get_clock().now().to_msg())]))
         self._next_truth = 0.0
+        self._truth_msg = None
+        self._colours = {fate: ColorRGBA(r=r, g=g, b=b, a=1.0) for fate, (r, g, b) in COLOURS.items()}
         self._links = np.empty((0, 2, 3))         # the arm's capsules at the newest sample
         self.tree_scene = None                    # a tree's own scene (its branches), when it has one
 
@@ -126,7 +129,7 @@ class FruitSim:
             if self.camera is not None:
                 frames.hold(self.world.t, self._capture())
         for stamp, detections in frames.due(now):
-            self.pub_detections.publish(detections_msg(detections, self.camera_frame, int(round(stamp * 1e9))))
+            self.pub_detections.publish(self._encode(detections, self.camera_frame, int(round(stamp * 1e9))))
         if now >= self._next_truth:
             self._next_truth = now + 1.0 / TRUTH_RATE
             self.pub_truth.publish(self._truth())
@@ -169,21 +172,28 @@ class FruitSim:
                                        event=e.kind, t=f'{e.t:.3f}', x=x, y=y, z=z, **self.world.counts()))
 
     def _truth(self):
-        out = MarkerArray()
+        """The apples as spheres coloured by fate: one message, its markers updated in place (building them anew
+        at this rate would cost the thread more than moving the apples)."""
+        out = self._truth_msg
         stamp = self.node.get_clock().now().to_msg()
         with self.lock:
             w = self.world
-            for i in range(len(w)):
-                m = Marker(ns='apples', id=i, type=Marker.SPHERE, action=Marker.ADD)
-                m.header.frame_id, m.header.stamp = self.node.base_tf, stamp
+            if out is None:
+                out = self._truth_msg = MarkerArray(markers=[self._marker(i, float(2 * w.radius[i]))
+                                                             for i in range(len(w))])
+            for i, m in enumerate(out.markers):
+                m.header.stamp = stamp
                 m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in w.p[i])
-                m.pose.orientation.w = 1.0
-                m.scale.x = m.scale.y = m.scale.z = float(2 * w.radius[i])
-                r, g, b = COLOURS[Fate(int(w.fate[i]))]
-                m.color = ColorRGBA(r=r, g=g, b=b, a=1.0)
-                m.text = Fate(int(w.fate[i])).words
-                out.markers.append(m)
+                fate = Fate(int(w.fate[i]))
+                m.color, m.text = self._colours[fate], fate.words
         return out
+
+    def _marker(self, i, diameter):
+        m = Marker(ns='apples', id=i, type=Marker.SPHERE, action=Marker.ADD)
+        m.header.frame_id = self.node.base_tf
+        m.pose.orientation.w = 1.0
+        m.scale.x = m.scale.y = m.scale.z = diameter
+        return m
 
     def diagnose(self):
         with self.lock:
