@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_bringup.stack import Stack, stop_all
+from picking_common.middleware import use_fast_discovery
 from picking_common.run import SWITCH_INTERVAL
 from picking_common.topics import BURST, LatestMessage
 
@@ -49,6 +50,7 @@ class Watcher:
 
     def __init__(self, ns):
         if not rclpy.ok():
+            use_fast_discovery()
             rclpy.init()
         self.node = rclpy.create_node(f'bench_watcher_{os.getpid()}_{ns.strip("/")}', namespace=ns)
         self.arrivals = []

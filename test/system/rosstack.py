@@ -27,6 +27,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from picking_bringup import stack as launcher
 from picking_bringup.stack import NodeProcess, stop_all  # noqa: F401  (the tests stop processes with it)
+from picking_common.middleware import use_fast_discovery
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import LatestMessage
 from picking_core.kinematics import ArmModel
@@ -294,6 +295,7 @@ def make_pose(xyz, quat=DOWN):
 
 def ensure_rclpy():
     if not rclpy.ok():
+        use_fast_discovery()
         rclpy.init()
 
 

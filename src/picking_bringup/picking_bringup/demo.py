@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from picking_common.middleware import use_fast_discovery
+
 from .demo_report import analyse_and_report, load_demo_settings, log, log_checks, run_tool
 from .stack import BIN as HERE
 from .stack import Stack
@@ -51,6 +53,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
     for name, p in stack.nodes.items():
         log(f'started {name} (pid {p.pid})')
     events = {'ok': False}
+    use_fast_discovery()
     rclpy.init()
     node = rclpy.create_node(f'picking_demo_{os.getpid()}')
     rec = Recorder(node, {'planned_trajectory': JointTrajectory, 'planned_path': PathMsg,

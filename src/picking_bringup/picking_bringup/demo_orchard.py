@@ -10,6 +10,8 @@ import time
 
 import numpy as np
 
+from picking_common.middleware import use_fast_discovery
+
 from .demo_report import _table, log
 from .stack import Stack
 
@@ -77,6 +79,7 @@ class _OrchardArm:
         from .recording import Recorder
         self.ns = ns
         self.stack = Stack(ns, out / 'logs', config=config)
+        use_fast_discovery()
         rclpy.init()
         self.node = rclpy.create_node(f'picking_demo_orchard_{os.getpid()}', namespace=ns)
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

@@ -9,6 +9,7 @@ from functools import partial
 
 import numpy as np
 
+from picking_common.middleware import use_fast_discovery
 from picking_description import platform_path
 
 from .demo_report import _table, log, run_tool
@@ -39,6 +40,7 @@ def run_platform_scenario(config, out, demo):
     stack = PlatformStack(platform_path(), layout, '/', out / 'logs', config=config)
     for p in stack.processes:
         log(f'started {p.name} ({p.log_path.parent.name}, pid {p.pid})')
+    use_fast_discovery()
     rclpy.init()
     node = rclpy.create_node(f'picking_demo_platform_{os.getpid()}')
     reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

@@ -25,6 +25,8 @@ import threading
 import time
 from pathlib import Path
 
+from picking_common.middleware import use_fast_discovery
+
 #: The nodes in start order: their executable, ROS node name and parameter files in config/.
 NODES = {
     'picking-sim': ('picking_sim', ('sim.yaml',)),
@@ -156,6 +158,7 @@ def probe_node():
 
             import rclpy
             context = rclpy.Context()
+            use_fast_discovery()
             rclpy.init(context=context)
             # A leading underscore hides it from `ros2 node list`, as the tools' own nodes are.
             node = rclpy.create_node(f'_picking_stack_{os.getpid()}', context=context)

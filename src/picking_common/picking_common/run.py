@@ -13,6 +13,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from .middleware import use_fast_discovery
+
 #: s a node may take to stop once asked (its launcher kills it some seconds later).
 STOP_LIMIT = 6.0
 #: s a thread waiting for the GIL lets the holder run before asking for it: a 1 kHz loop thread
@@ -45,6 +47,7 @@ def run_node(make_node, args=None, help=None):
     # for the GIL up to the switch interval: keep that short.
     sys.setswitchinterval(SWITCH_INTERVAL)
     try:
+        use_fast_discovery()
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as exc:
         print(f'{prog}: ROS could not start: {exc}{_security_hint()}', file=sys.stderr)

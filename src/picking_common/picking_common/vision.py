@@ -75,9 +75,9 @@ def cdr_agrees():
     """True when the middleware reads :func:`detections_cdr`'s bytes as the message :func:`detections_msg`
     builds (then a publisher may send the bytes)."""
     from rclpy.serialization import deserialize_message
-    from vision_msgs.msg import Detection3DArray
 
     from picking_core.camera import Detection
+    from vision_msgs.msg import Detection3DArray
 
     sample = [Detection(np.array([0.1, -0.2, 0.9]), 0.075, 0.9, 0.003, 0),
               Detection(np.array([1.5, 0.25, 2.0]), 0.06, 0.42, 0.01, -1)]

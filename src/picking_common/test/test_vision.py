@@ -34,9 +34,9 @@ def test_a_detection_with_nan_a_bad_covariance_or_another_class_is_refused_with_
 @pytest.mark.parametrize('n', [0, 1, 7])
 def test_the_bytes_written_directly_are_the_message_the_middleware_writes(n):
     from rclpy.serialization import deserialize_message
-    from vision_msgs.msg import Detection3DArray
 
     from picking_common.vision import cdr_agrees, detections_cdr
+    from vision_msgs.msg import Detection3DArray
     rng = np.random.default_rng(n)
     dets = [Detection(rng.normal(size=3), float(rng.uniform(0.05, 0.1)), float(rng.uniform()), 0.003 * (i + 1), i)
             for i in range(n)]
