@@ -47,7 +47,7 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import Header
 
-from picking_common.poses import pose_msg
+from picking_common.middleware import use_fast_discovery
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
 from picking_core.methods import PATH_METHODS, POSE_METHODS
@@ -276,6 +276,7 @@ def harvest(args, node, poses):
         msg = Header(stamp=node.get_clock().now().to_msg())
         key, what = stamp_key(msg.stamp), 'a harvest of the apples seen'
     else:
+        from picking_common.poses import pose_msg  # (scipy: loaded only by the commands that need it)
         msg = PoseArray(poses=[pose_msg(T) for T in poses])
         msg.header.frame_id, msg.header.stamp = args.frame, node.get_clock().now().to_msg()
         key = stamp_key(msg.header.stamp)
@@ -390,6 +391,7 @@ def main(argv=None):
             quaternion(args)
     except ValueError as exc:
         parser.error(str(exc))
+    use_fast_discovery()
     rclpy.init(args=argv)
     node = GoalClient(f'picking_goal_{os.getpid()}')
     try:
