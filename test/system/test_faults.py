@@ -80,7 +80,9 @@ def test_a_planner_killed_mid_cycle_leaves_the_arm_held_and_a_restarted_one_carr
         stack.restart_planner()
         stack.wait_ready(90.0)                          # a loaded machine starts a node slowly
         answer = reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]), timeout=60.0)
-        assert status_values(answer)['state'] == 'accepted'
+        # The new planner's first word on it: accepted, or (when it said that before this client had matched its
+        # new planner_status writer, which a killed planner's stale one hides for its lease) executing.
+        assert status_values(answer)['state'] in ('accepted', 'executing'), answer.message
 
 
 def test_a_simulator_killed_mid_motion_aborts_the_goal_with_the_reason_and_the_controller_holds(tmp_path):
