@@ -7,14 +7,13 @@ the servo's lag, the camera's latency and the swaying of a gust are the simulato
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from picking_bringup.shipped import shipped_harvest, shipped_orchard
 from picking_core.camera import CameraSettings, DepthCamera, look_at
 from picking_core.collision import CollisionChecker
 from picking_core.fruit import Fate
 from picking_core.fruit_map import FruitMap
-from picking_core.harvest import SIDEWAYS, Harvest
+from picking_core.harvest import Harvest
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_core.pick_cycle import GRIPPER_OPEN, PickCycle
 from picking_sim.orchard import ArmSamples, fruit_world
@@ -49,13 +48,7 @@ def _seen(orchard, world, samples, home, noise, seed):
         covariances = np.array([R @ np.eye(3) * d.sigma ** 2 @ R.T for d in seen]).reshape(-1, 3, 3)
         fruit_map.update(t, positions, covariances, np.array([d.diameter for d in seen]),
                          np.array([d.score for d in seen]))
-    grasp = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
-    poses = []
-    for track in fruit_map.targets():
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = grasp, track.x
-        poses.append(T)
-    return poses
+    return fruit_map.grasp_poses()
 
 
 def _one(harvest, orchard, seed, source):

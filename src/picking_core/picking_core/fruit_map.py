@@ -19,7 +19,9 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from .harvest import SIDEWAYS
 from .kinematics.capsules import point_segment_distances
 
 
@@ -103,6 +105,15 @@ class FruitMap:
     def targets(self):
         """The confirmed tracks, oldest first."""
         return [k for k in self.tracks if k.confirmed]
+
+    def grasp_poses(self, rpy=SIDEWAYS):
+        """The confirmed apples as a harvest's grasp poses (4x4, base frame): each at its centre estimate, the
+        gripper turned by roll-pitch-yaw ``rpy`` (rad)."""
+        targets = self.targets()
+        T = np.tile(np.eye(4), (len(targets), 1, 1))
+        T[:, :3, :3] = Rotation.from_euler('xyz', rpy).as_matrix()
+        T[:, :3, 3] = np.array([k.x for k in targets]).reshape(-1, 3)
+        return list(T)
 
     def counts(self):
         return {'frames': self.frames, 'detections': self.detections, 'tracks': len(self.tracks),

@@ -75,3 +75,17 @@ def test_a_track_is_confirmed_after_the_hits_asked(hits):
     for k in range(hits):
         fmap.update(k / 30, APPLES[:1], R[None])
         assert bool(fmap.targets()) == (k + 1 >= hits)
+
+
+def test_the_confirmed_apples_are_a_harvests_grasp_poses_sideways_at_their_estimates():
+    from scipy.spatial.transform import Rotation
+
+    from picking_core.harvest import SIDEWAYS
+    fruit_map = FruitMap()
+    assert fruit_map.grasp_poses() == []
+    apple = np.array([0.6, 0.1, 0.5])
+    for k in range(10):
+        fruit_map.update(k / 30, apple[None], (np.eye(3) * 0.003 ** 2)[None])
+    poses = fruit_map.grasp_poses()
+    assert len(poses) == 1 and np.allclose(poses[0][:3, 3], apple, atol=0.005)
+    assert np.allclose(poses[0][:3, :3], Rotation.from_euler('xyz', SIDEWAYS).as_matrix())

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 from collections import Counter
 
-import numpy as np
-from scipy.spatial.transform import Rotation
 from std_msgs.msg import Header
 
 from picking_common.status import Level, stamp_key
@@ -18,7 +16,6 @@ from picking_common.vision import read_detections
 from picking_core.fruit_map import FruitMap
 from picking_core.goals.lifecycle import Ending, Outcome
 from picking_core.goals.requests import Goal, Kind, Target
-from picking_core.harvest import SIDEWAYS
 from vision_msgs.msg import Detection3DArray
 
 from .inputs import goal_id
@@ -32,7 +29,6 @@ class SeenApples:
         self.node, self.runner, self.in_base = node, runner, in_base
         self.map = FruitMap(settings)
         self.refused = Counter()                 # detections left out before the map: the map counts its own
-        self.grasp = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
         node.create_subscription(Detection3DArray, 'detections', self._on_detections, 10)
         node.create_subscription(Header, 'harvest_seen', self._on_harvest, BURST)
 
@@ -60,16 +56,11 @@ class SeenApples:
 
     def _on_harvest(self, header):
         goal = Goal(Kind.HARVEST, goal_id(header), None, self.runner.port.wall(), stamp=stamp_key(header.stamp))
-        targets = self.map.targets()
-        if not targets:
+        poses = self.map.grasp_poses()
+        if not poses:
             self.runner.end(goal, Ending(Outcome.REFUSED, 'no apples seen: the fruit map has no confirmed apple (are '
                                                           'detections coming?)'))
             return
-        poses = []
-        for track in targets:
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = self.grasp, track.x
-            poses.append(T)
         goal.target = Target(Kind.HARVEST, tuple(poses))
         self.node.get_logger().info(f'harvest of the {len(poses)} apples seen (goal {goal.key})')
         self.runner.take(goal)
