@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.subscription import Subscription
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -110,15 +111,22 @@ class Client(Node):
             self._exec.spin_once(timeout_sec=0.05)
             while not self._retiring.empty():
                 thing, done = self._retiring.get()
-                thing.destroy()
+                self._destroy(thing)
                 done.set()
+
+    def _destroy(self, thing):
+        # (A subscription goes through its node, which destroys its event handlers with it.)
+        if isinstance(thing, Subscription):
+            self.destroy_subscription(thing)
+        else:
+            thing.destroy()
 
     def retire(self, thing):
         """Destroy an action client or server, a subscription or a listener of this node between two
         turns of its spin thread: destroyed while the executor waits on it, the thread dies ("action
         client pointer is invalid") and the client hears nothing more."""
         if not self._thread.is_alive():
-            thing.destroy()
+            self._destroy(thing)
             return
         done = threading.Event()
         self._retiring.put((thing, done))
@@ -337,6 +345,25 @@ def final_answer(client, since, timeout=40.0):
     """The planner's final status for the last goal sent (its result, as an action client gets it)."""
     return client.wait_for(lambda: [m for m in client.answers(since) if status_values(m).get('state') in FINAL],
                            timeout, 'the goal to end')[0]
+
+
+def planner_says(client, ns, says, timeout=20.0, what='the planner to say so'):
+    """The planner in ``ns``'s first /diagnostics status for which ``says(status)`` is true."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    arrays = []
+    sub = client.create_subscription(DiagnosticArray, '/diagnostics', arrays.append, 10)
+    name = f'{ns.strip("/")}/picking_planner: planner'
+    try:
+        return client.wait_for(lambda: next((s for a in arrays for s in a.status if s.name == name and says(s)), None),
+                               timeout, what)
+    finally:
+        client.retire(sub)
+
+
+def planner_ready(client, ns, timeout=60.0):
+    """Until the planner in ``ns`` says on /diagnostics that it can plan (it has discovered its controller and the
+    controller has answered it: a fresh process on a saturated machine has taken over ten seconds)."""
+    planner_says(client, ns, lambda s: s.level == DiagnosticStatus.OK, timeout, f'the planner in {ns} to be ready')
 
 
 def reach(client, send, timeout=40.0):

@@ -15,7 +15,20 @@ from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rosstack import ARM, ARM_JOINTS, BIN, FINAL, GOALS, HOME, Process, make_pose, reach, running_stack, settles_at
+from rosstack import (
+    ARM,
+    ARM_JOINTS,
+    BIN,
+    FINAL,
+    GOALS,
+    HOME,
+    Process,
+    make_pose,
+    planner_ready,
+    reach,
+    running_stack,
+    settles_at,
+)
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from picking_bringup.shipped import config_dir
@@ -260,16 +273,6 @@ def test_new_goal_mid_motion_continues_without_a_velocity_jump(arm1):
 #: the benchmarks: both loops fall to about 550 Hz, and a stall of the kind then seen, 0.55 s without
 #: joint_states, rightly aborts a move), and what this test checks is the namespaces.
 SECOND_ARM_AT_250_HZ = {'sim_args': ('-p', 'servo_rate:=250.0'), 'controller_args': ('-p', 'update_rate:=250.0')}
-
-
-def planner_ready(client, ns, timeout=60.0):
-    """Until the planner in ``ns`` says on /diagnostics that it can plan (it has discovered its controller: a fresh
-    process on a saturated machine has taken over ten seconds)."""
-    from diagnostic_msgs.msg import DiagnosticArray
-    arrays = []
-    client.create_subscription(DiagnosticArray, '/diagnostics', arrays.append, 10)
-    client.wait_for(lambda: any(s.name == f'{ns.strip("/")}/picking_planner: planner' and s.level == DiagnosticStatus.OK
-                                for a in arrays for s in a.status), timeout, f'the planner in {ns} to be ready')
 
 
 def test_second_arm_in_its_own_namespace(arm1, tmp_path):

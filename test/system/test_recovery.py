@@ -11,7 +11,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.task import Future
-from rosstack import Client, Stack, ensure_rclpy, largest_step, reach, running_stack
+from rosstack import Client, Stack, ensure_rclpy, final_answer, largest_step, planner_says, reach, running_stack
 
 from picking_common.status import stamp_key, status_values
 from picking_core.goals.lifecycle import RESPONSE_LIMIT, RESULT_MARGIN
@@ -99,6 +99,7 @@ def test_a_simulator_paused_mid_move_catches_up_without_a_fault_and_says_so(tmp_
         # Well within the path tolerance (0.1 rad); about 0.6 mrad measured (6-9 mrad when the servo took the
         # command back in time; the exact figures are the unit tests' of the servo).
         assert float({kv.key: kv.value for kv in done.values}['max_tracking_error']) < 0.05
+        assert status_values(final_answer(client, mark)).get('state') == 'succeeded'   # and the planner says so
 
 
 class StandInController:
@@ -107,11 +108,11 @@ class StandInController:
     'succeeded', or 'silent' (accepted, then never answered); the first ``unanswered`` goals get no
     goal response at all (as when DDS drops one while discovery is under way)."""
 
-    def __init__(self, client, verdicts, unanswered=0):
+    def __init__(self, client, verdicts, unanswered=0, server=ActionServer):
         self.client, self.verdicts, self.plans, self.asked = client, list(verdicts), [], 0
         self.unanswered = unanswered
         # (Reentrant: a goal left unanswered must not hold up the requests after it.)
-        self.server = ActionServer(client, FollowJointTrajectory, 'follow_joint_trajectory',
+        self.server = server(client, FollowJointTrajectory, 'follow_joint_trajectory',
                                    goal_callback=self._goal, execute_callback=self._execute,
                                    callback_group=ReentrantCallbackGroup())
 
@@ -132,6 +133,20 @@ class StandInController:
         handle.abort()
         words = {FollowJointTrajectory.Result.OLD_HEADER_TIMESTAMP: 'the trajectory ends in the past'}
         return FollowJointTrajectory.Result(error_code=verdict, error_string=words.get(verdict, 'unknown joints'))
+
+
+class DeafServer(ActionServer):
+    """An action server whose answers to result requests are lost (it has not yet discovered the client's reader, as
+    one side of DDS discovery can lag the other on a loaded machine): all of them while ``deaf`` is 'all', those for
+    its own goals while it is 'goals'."""
+
+    deaf = 'all'
+
+    async def _execute_get_result_request(self, request_header_and_message):
+        ours = bytes(request_header_and_message[1].goal_id.uuid) in self._goal_handles
+        if self.deaf == 'all' or (self.deaf == 'goals' and ours):
+            return
+        await super()._execute_get_result_request(request_header_and_message)
 
 
 def _answers(client, mark, goal):
@@ -185,6 +200,47 @@ def test_a_plan_whose_goal_response_never_comes_is_planned_again_and_the_goal_su
         assert status_values(done)['state'] == 'succeeded', done.message
         assert controller.asked == 2 and len(controller.plans) == 1
         assert 'did not answer the plan' in stack.planner.output()
+        client.retire(controller.server)
+
+
+def test_no_plan_goes_to_a_controller_that_has_not_yet_heard_the_planner(tmp_path):
+    """A controller the planner has discovered may not yet have discovered the planner: its answers would be lost.
+    The planner sends no plan until the controller has answered it once (the result of a goal it never had); a goal
+    meanwhile waits and is refused after 5 s saying why, and plans go out once the controller answers."""
+    with running_stack('/sys10', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        planner_says(client, '/sys10', lambda s: 'no controller serves' in s.message, 20.0, 'the controller gone')
+        controller = StandInController(client, ['succeeded'], server=DeafServer)
+        planner_says(client, '/sys10', lambda s: 'yet to hear the planner' in s.message, 20.0, 'the planner to wait')
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        refused = client.wait_for(lambda: [m for m in _answers(client, mark, goal) if m.level == DiagnosticStatus.ERROR],
+                                  20.0, 'the refusal')[0]
+        assert 'the controller has yet to hear the planner' in refused.message and 'waited 5 s' in refused.message
+        assert controller.asked == 0
+        controller.server.deaf = ''
+        planner_says(client, '/sys10', lambda s: s.level == DiagnosticStatus.OK, 20.0, 'the planner ready')
+        reach(client, lambda: client.send_pose([0.55, 0.05, 0.45]))
+        assert controller.asked == 1 and len(controller.plans) == 1
+        client.retire(controller.server)
+
+
+def test_a_result_whose_answers_are_lost_is_read_from_the_action_status(tmp_path):
+    """The controller's answers to result requests can be lost the same way; its status topic still says how the
+    goal ended, and the planner ends the goal as it says, without waiting out RESULT_MARGIN."""
+    with running_stack('/sys11', tmp_path) as (stack, client):
+        assert stack.controller.stop() == 0
+        planner_says(client, '/sys11', lambda s: 'no controller serves' in s.message, 20.0, 'the controller gone')
+        controller = StandInController(client, ['succeeded'], server=DeafServer)
+        controller.server.deaf = 'goals'
+        planner_says(client, '/sys11', lambda s: s.level == DiagnosticStatus.OK, 20.0, 'the planner ready')
+        mark = client.mark()
+        goal = stamp_key(client.send_pose([0.55, 0.05, 0.45]).header.stamp)
+        done = client.wait_for(lambda: [m for m in _answers(client, mark, goal)
+                                        if status_values(m).get('state') in ('succeeded', 'aborted', 'refused')],
+                               RESULT_MARGIN + 20.0, 'the goal to end')[0]
+        assert status_values(done)['state'] == 'succeeded', done.message
+        assert len(controller.plans) == 1
         client.retire(controller.server)
 
 

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import collections
+import os
 import time
 from functools import partial
 
@@ -16,6 +18,7 @@ from rclpy.action import ActionClient
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
+from unique_identifier_msgs.msg import UUID
 
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
@@ -24,6 +27,10 @@ from picking_common.topics import BURST, RELIABLE, LatestMessage
 from picking_core.pick_cycle import GRIPPER_JOINT
 
 RESULT_WORDS = {GoalStatus.STATUS_SUCCEEDED: 'succeeded', GoalStatus.STATUS_CANCELED: 'canceled'}
+#: s between two questions to a controller that has not answered the planner yet.
+PROBE_PERIOD = 1.0
+#: Probes left waiting for their answer at most (older ones are given up: a deaf controller leaks none).
+PROBES_PENDING = 5
 
 
 class ControllerLink:
@@ -33,6 +40,13 @@ class ControllerLink:
     def __init__(self, node):
         self.node, self.runner = node, None
         self.client = ActionClient(node, FollowJointTrajectory, 'follow_joint_trajectory')
+        # A controller the planner has discovered may not yet have discovered the planner (on a loaded host one side
+        # of DDS discovery has lagged the other by seconds): its answers to a plan would be lost. Plans wait until it
+        # has answered a harmless question, the result of a goal it never had, on the action's own service.
+        self.probe = node.create_client(FollowJointTrajectory.Impl.GetResultService,
+                                        'follow_joint_trajectory/_action/get_result')
+        self.heard, self._asked = False, -1e9
+        self._probes = collections.deque()          # the probes still waiting for their answer, oldest first
         # Times on the ROS clock count from here: as float seconds of the epoch they would resolve a quarter of a
         # microsecond, too coarse for a plan's own times (its acceleration steps are a microsecond long).
         self._origin_ns = node.get_clock().now().nanoseconds - 1_000_000_000
@@ -64,8 +78,28 @@ class ControllerLink:
         if self.measured() is None:
             return 'no joint_states received: the planner does not know where the arm is'
         if not self.client.server_is_ready():
+            self.heard = False
             return 'no controller serves follow_joint_trajectory: the plan cannot be run'
+        if not self.heard:
+            self._ask_controller()
+            return 'the controller has yet to hear the planner (discovery under way)'
         return None
+
+    def _ask_controller(self):
+        if self.wall() - self._asked < PROBE_PERIOD or not self.probe.service_is_ready():
+            return
+        self._asked = self.wall()
+        while self._probes and self._probes[0].done():
+            self._probes.popleft()
+        if len(self._probes) >= PROBES_PENDING:
+            self.probe.remove_pending_request(self._probes.popleft())
+        request = FollowJointTrajectory.Impl.GetResultService.Request(goal_id=UUID(uuid=list(os.urandom(16))))
+        future = self.probe.call_async(request)
+        future.add_done_callback(self._on_answer)
+        self._probes.append(future)
+
+    def _on_answer(self, future):
+        self.heard = True
 
     def measured(self):
         """The newest valid joint_states: ``(q, gripper opening or None)``, or None before any."""
@@ -120,8 +154,17 @@ class ControllerLink:
             flight.handle.cancel_goal_async()
 
     def ask_result(self, flight):
-        if flight.handle is not None:
-            flight.handle.get_result_async().add_done_callback(partial(self._on_result, flight))
+        """Ask again for an overdue result; if the action's status topic already says the goal succeeded or was
+        canceled, that ends it: a controller whose service answers do not reach this planner (one side of DDS
+        discovery lagging the other on a loaded host) still publishes its goals' statuses. (An abort waits for its
+        result, which says why.)"""
+        if flight.handle is None:
+            return
+        ended = RESULT_WORDS.get(flight.handle.status)
+        if ended is not None:
+            self.runner.on_result(flight, ended, 0, f'{ended}, as the action status says (its result did not come)')
+            return
+        flight.handle.get_result_async().add_done_callback(partial(self._on_result, flight))
 
     def _on_response(self, flight, future):
         handle = future.result()
