@@ -14,6 +14,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from .middleware import use_fast_discovery
+from .topics import destroy_latest
 
 #: s a node may take to stop once asked (its launcher kills it some seconds later).
 STOP_LIMIT = 6.0
@@ -107,6 +108,7 @@ def _teardown(node, executor):
     if executor is not None:
         executor.shutdown(timeout_sec=1.0)
     if node is not None:
+        destroy_latest(node)
         node.destroy_node()
     rclpy.try_shutdown()
 

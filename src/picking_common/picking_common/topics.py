@@ -54,6 +54,9 @@ class LatestMessage:
         parent._subscriptions.remove(self.sub)
         for handler in self.sub.event_handlers:
             parent.remove_waitable(handler)
+        # Out of the node's list, destroy_node would leave it alive past its node (an rclpy subscription outliving
+        # its node corrupts the heap at exit): destroy_latest destroys it with the node.
+        parent.__dict__.setdefault('_latest_messages', []).append(self)
         self.last = None
 
     def take(self):
@@ -91,6 +94,15 @@ class LatestMessage:
         return self.sub.get_publisher_count()
 
     def destroy(self):
+        if self.sub is None:
+            return
         for handler in self.sub.event_handlers:
             handler.destroy()
         self.sub.destroy()
+        self.sub = None
+
+
+def destroy_latest(node):
+    """Destroy every :class:`LatestMessage` of ``node`` not yet destroyed (before ``node.destroy_node()``)."""
+    for latest in node.__dict__.get('_latest_messages', ()):
+        latest.destroy()

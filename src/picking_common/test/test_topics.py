@@ -4,7 +4,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 
-from picking_common.topics import LatestMessage
+from picking_common.topics import LatestMessage, destroy_latest
 
 
 def test_the_executor_waits_on_neither_the_subscription_nor_its_events_yet_the_newest_message_is_taken():
@@ -30,6 +30,24 @@ def test_the_executor_waits_on_neither_the_subscription_nor_its_events_yet_the_n
         assert got is not None and list(got.name) == ['a']
         latest.destroy()
         executor.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
+def test_a_node_destroys_its_latest_messages_with_it_once():
+    """Out of the node's own list, a LatestMessage's subscription would outlive its node (rclpy then corrupted a
+    state publisher's heap at exit, which never destroyed its own): destroy_latest destroys each once."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node('latest_teardown', context=context,
+                                 cli_args=['--ros-args', '-r', '__ns:=/latest_teardown'])
+        kept, closed = LatestMessage(node, JointState, 'a'), LatestMessage(node, JointState, 'b')
+        closed.destroy()
+        destroy_latest(node)
+        destroy_latest(node)
+        assert kept.sub is None and closed.sub is None
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
