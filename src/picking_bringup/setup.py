@@ -27,7 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'picking-stack = picking_bringup.stack:main',
-            'picking-goal = picking_bringup.goal:main',
+            'picking-goal = picking_bringup.picking_goal:main',
             'picking-plan = picking_bringup.plan:main',
             'picking-demo = picking_bringup.demo:main',
             'picking-foxglove = picking_bringup.foxglove:main',

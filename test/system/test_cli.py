@@ -42,7 +42,9 @@ def test_each_subcommand_has_help(tool, sub):
                                   ('picking-plan', 'lspb', '--q0', 15), ('picking-plan', 'cubic'),
                                   ('picking-goal', 'harvest'), ('picking-goal', 'harvest', '--tree', 0),
                                   ('picking-sim', 'extra'), ('picking-stack', '--domain', 999),
-                                  ('picking-stack', '--without', 'picking-planner')])
+                                  ('picking-stack', '--without', 'picking-planner'),
+                                  ('picking-goal', 'stop', '--timeout', 'x'), ('picking-goal', 'stop', 'now'),
+                                  ('picking-goal', 'stop', '--ros-args', '--timeout', 1)])
 def test_missing_or_bad_arguments_exit_2_with_the_usage(args):
     done = run(*args)
     assert done.returncode == 2, (done.stdout, done.stderr)

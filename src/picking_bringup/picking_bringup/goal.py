@@ -41,6 +41,7 @@ from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
+from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError, UnknownROSArgsError
 from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -52,9 +53,7 @@ from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
 from picking_core.methods import PATH_METHODS, POSE_METHODS
 
-EXIT_OK, EXIT_REFUSED, EXIT_ARGS, EXIT_FAILED, EXIT_TIMEOUT = 0, 1, 2, 3, 4
-#: s of discovery before picking-goal says what it waits for.
-DISCOVERY = 2.0
+from .stop import DISCOVERY, EXIT_FAILED, EXIT_OK, EXIT_REFUSED, EXIT_TIMEOUT, spin_until, stop
 
 
 def build_parser():
@@ -143,13 +142,7 @@ def make_pose(xyz, quat):
 
 class GoalClient(Node):
     def spin_until(self, predicate, timeout):
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            rclpy.spin_once(self, timeout_sec=0.05)
-            result = predicate()
-            if result:
-                return result
-        return None
+        return spin_until(self, predicate, timeout)
 
 
 def make_goal(args, node):
@@ -180,39 +173,6 @@ def wait_for_server(node, action, name, timeout):
         return True
     print(f'picking-goal: no {where} action server', file=sys.stderr)
     return False
-
-
-#: The actions `picking-goal stop` cancels: the planner's three and its controller's (which runs the plans of the
-#: topics' goals and of a harvest too).
-STOPPED = ('move_to_pose', 'follow_path', 'pick', 'follow_joint_trajectory')
-
-
-def stop(node, timeout):
-    """Cancel every goal of :data:`STOPPED`, whoever sent it, at once: the four cancel services are found together
-    and asked together (a cancel request naming no goal cancels all)."""
-    from action_msgs.srv import CancelGoal
-    clients = {name: node.create_client(CancelGoal, f'{name}/_action/cancel_goal') for name in STOPPED}
-    if not node.spin_until(lambda: all(c.service_is_ready() for c in clients.values()), DISCOVERY):
-        # (A process just started may need longer than that to discover the services on a busy machine.)
-        print(f'picking-goal: waiting up to {timeout:g} s for the action servers', file=sys.stderr, flush=True)
-        node.spin_until(lambda: all(c.service_is_ready() for c in clients.values()), max(timeout - DISCOVERY, 0.0))
-    ready = {name: c for name, c in clients.items() if c.service_is_ready()}
-    if not ready:
-        print('picking-goal: no action server to stop (is the arm up, in this namespace?)', file=sys.stderr)
-        return EXIT_TIMEOUT
-    missing = sorted(set(clients) - set(ready))
-    if missing:
-        print(f'picking-goal: no {", ".join(missing)} server: not stopped there', file=sys.stderr)
-    futures = {name: c.call_async(CancelGoal.Request()) for name, c in ready.items()}
-    node.spin_until(lambda: all(f.done() for f in futures.values()), timeout)
-    canceling = {name: len(f.result().goals_canceling) for name, f in futures.items() if f.done() and f.result()}
-    total = sum(canceling.values())
-    if total:
-        where = ', '.join(f'{n} {name}' for name, n in canceling.items() if n)
-        print(f'stop: {total} goal{"s" if total != 1 else ""} canceling ({where}): the arm brakes to rest')
-    else:
-        print('stop: no goal was running; the arm holds where it is')
-    return EXIT_OK if len(canceling) == len(ready) else EXIT_TIMEOUT
 
 
 def harvest_poses(args):
@@ -379,7 +339,11 @@ def run(args, node):
 def main(argv=None):
     argv = sys.argv if argv is None else argv
     parser = build_parser()
-    args = parser.parse_args(remove_ros_args(argv)[1:])
+    try:
+        own = remove_ros_args(argv)[1:]
+    except (RCLInvalidROSArgsError, UnknownROSArgsError) as exc:
+        parser.error(f"bad ROS arguments: {exc} (picking-goal's own options go before --ros-args)")
+    args = parser.parse_args(own)
     args.timeout = getattr(args, 'timeout', 30.0)
     args.no_wait = getattr(args, 'no_wait', False)
     if not (np.isfinite(args.timeout) and args.timeout > 0):

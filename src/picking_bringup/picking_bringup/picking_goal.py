@@ -1,0 +1,17 @@
+"""``picking-goal``'s entry point: a plain stop takes :mod:`.stop`'s quick path, everything else :mod:`.goal`."""
+
+from __future__ import annotations
+
+import sys
+
+from .stop import stop_asked
+
+
+def main(argv=None):
+    argv = sys.argv if argv is None else argv
+    timeout = stop_asked(argv)
+    if timeout is not None:
+        from .stop import main as stop_main
+        return stop_main(argv, timeout)
+    from .goal import main as goal_main
+    return goal_main(argv)
