@@ -21,10 +21,17 @@ from scipy.spatial.transform import Rotation
 
 from .collision import Allowed
 from .kinematics import Unreachable
-from .planning.joint_path import NoPath, rrt_connect
+from .planning.joint_path import REFINE, NoPath, doubled, rrt_connect
 
 #: The joint moves of the cycle that may go around an obstacle (pick_cycle.DETOURS).
 DETOURS = ('P0 home', 'P1 approach', 'P4 above the box', 'P0 back home')
+#: Points a joint move is held to the straight way by, when that way passes the apples and the timed move not.
+STRAIGHT = 3
+#: Extensions of the joint path tried around the apples (a cheap look: a move without one is slowed instead).
+PAST_APPLES_TRIES = 150
+#: The slowest a joint move is made to pass apples (a fraction of the planner's speed), and the margin below the
+#: pass speed each slowing aims at (link speeds scale with the move's).
+MIN_SLOW, SLOW_MARGIN = 0.3, 0.9
 #: rad: the tilts tried, in steps up to the cone.
 TILT_STEP = np.radians(15.0)
 #: Directions of tilt around the grasp axis.
@@ -109,10 +116,12 @@ def candidates(T, cone):
     return out
 
 
-def clear_cycle(cycle, plan_one, T_apple):
-    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch)`` plans
-    the cycle for a grasp pose (``branch``: the joints at its P1, None for the default); ``cycle``
-    (:class:`~picking_core.pick_cycle.PickCycle`) gives the settings, the arm and the checker.
+def clear_cycle(cycle, plan_one, T_apple, neighbours=None):
+    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch, slow)`` plans
+    the cycle for a grasp pose (``branch``: the joints at its P1, None for the default; ``slow``: joint moves
+    slowed, see :meth:`~picking_core.pick_cycle.PickCycle._plan`); ``cycle``
+    (:class:`~picking_core.pick_cycle.PickCycle`) gives the settings, the arm and the checker;
+    ``neighbours``: the apples not picked, passed slowly (:func:`clear_plan`).
     Raises :class:`Blocked` (or Unreachable) with the reason."""
     s, checker = cycle.s, cycle.checker
     allowed = Allowed(np.asarray(T_apple, float)[:3, 3], s.apple_region)
@@ -123,7 +132,8 @@ def clear_cycle(cycle, plan_one, T_apple):
     first = None                                  # why the requested approach failed, unless it hit something
     if not hit:
         try:
-            plan, contact = clear_plan(cycle, lambda detours=None: plan_one(T_apple, detours), allowed)
+            plan, contact = clear_plan(cycle, lambda detours=None, slow=None: plan_one(T_apple, detours, slow=slow),
+                                       allowed, neighbours)
             if contact is None:
                 return plan
             first = Blocked(f'the requested approach hits {contact}')
@@ -141,10 +151,10 @@ def clear_cycle(cycle, plan_one, T_apple):
         passed, blocked = screen(cycle, approaches, allowed, enough=MAX_CYCLES)
         screened_out += blocked
         for approach in passed[:MAX_CYCLES]:
-            def make(detours=None, a=approach):
-                return plan_one(a.pose, detours, a.branch)
+            def make(detours=None, slow=None, a=approach):
+                return plan_one(a.pose, detours, a.branch, slow)
             try:
-                plan, contact = clear_plan(cycle, make, allowed)
+                plan, contact = clear_plan(cycle, make, allowed, neighbours)
             except Unreachable:
                 continue
             if contact is None:
@@ -165,10 +175,12 @@ def clear_cycle(cycle, plan_one, T_apple):
     raise Unreachable(f'{first}; no other approach {within} reaches it either') from None
 
 
-def clear_plan(cycle, make, allowed):
-    """``(plan, contact)``: ``make(detours)``'s plan and its first contact (None: clear). A joint move
+def clear_plan(cycle, make, allowed, neighbours=None):
+    """``(plan, contact)``: ``make(detours, slow)``'s plan and its first contact (None: clear). A joint move
     that hits something (one of the cycle's DETOURS) goes around it through the waypoints of a
-    collision-free joint path (RRT-Connect, shortcut), and the plan is made again with them."""
+    collision-free joint path (RRT-Connect, shortcut), and the plan is made again with them. With
+    ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`, the apples not being picked), a
+    clear plan's joint moves that pass an apple too fast go around the apples too (:func:`_past_apples`)."""
     checker = cycle.checker
     plan = make()
     if checker is None:
@@ -188,10 +200,94 @@ def clear_plan(cycle, make, allowed):
         detours[contact.part] = list(path[1:-1])
         plan = make(detours)
         contact = check(checker, plan, allowed)
+    if contact is None and neighbours is not None and len(neighbours):
+        plan, detours = _past_apples(cycle, make, plan, detours, allowed, neighbours)
     if contact is None and detours:
         plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoint{"s" * (len(w) != 1)}'
                                           for label, w in detours.items())
     return plan, contact
+
+
+def _past_apples(cycle, make, plan, detours, allowed, neighbours):
+    """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
+    the ``neighbours`` faster than their speed taken around the apples (:func:`_around_apples`), or, where no
+    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed; the plan made
+    that way kept only when clear of obstacles). A move that neither helps keeps its path (the apple it passes
+    may bruise)."""
+    checker = cycle.checker
+    tried, slow = set(), {}
+    while True:
+        touch, seg = _fast_touch(checker, plan, neighbours, [label for label in DETOURS if label not in tried])
+        if touch is None:
+            if slow:
+                plan.extra['slowed'] = ', '.join(f'{label} to {f:.0%}' for label, f in slow.items())
+            return plan, detours
+        tried.add(seg.label)
+        around = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)
+        if around is not None:
+            plan, detours = around
+            continue
+        fraction = 1.0
+        while fraction > MIN_SLOW:
+            fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
+            try:
+                again = make(detours, {**slow, seg.label: fraction})
+            except Unreachable:
+                break
+            if check(checker, again, allowed) is not None:
+                break
+            still = _fast_touch(checker, again, neighbours, [seg.label])[0]
+            if still is None:
+                plan, slow = again, {**slow, seg.label: fraction}
+                break
+            touch = still
+
+
+def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
+    """``(plan, detours)`` with the joint move ``seg`` of ``plan`` taken around the ``neighbours``: through the
+    waypoints of a joint path clear of them and of the obstacles (the apples its own ends touch, slowly there,
+    are passed as they are), twice as many of them while the timed move still cuts past an apple fast, up to
+    REFINE times; None when no such path is found, or the plan made that way is not clear."""
+    checker, arm = cycle.checker, cycle.arm
+    ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :arm.dof]
+    ignore = neighbours.touched_at(ends)
+    try:
+        path = rrt_connect(lambda x: checker.colliding(x, allowed) | neighbours.touching(x, ignore),
+                           ends[0], ends[1], arm.lower, arm.upper, iterations=PAST_APPLES_TRIES)
+    except NoPath:
+        return None
+    if len(path) <= 2:
+        # The straight way in joint space passes no apple, but the timed move (each joint on its own time)
+        # bends away from it: held to it by points along it.
+        path = ends[0] + np.linspace(0.0, 1.0, STRAIGHT + 2)[:, None] * (ends[1] - ends[0])
+    for _ in range(REFINE + 1):
+        around = {**detours, seg.label: list(path[1:-1])}
+        try:
+            again = make(around, slow)
+        except Unreachable:
+            return None
+        if check(checker, again, allowed) is not None:
+            return None
+        if _fast_touch(checker, again, neighbours, [seg.label])[0] is None:
+            return again, around
+        path = doubled(path)
+    return None
+
+
+def _fast_touch(checker, plan, neighbours, labels):
+    """``(touch, segment)``: the first :class:`~picking_core.collision.fruit.FastTouch` of ``plan`` (at the checker's
+    samples) within its segments labelled one of ``labels``, and that segment; ``(None, None)`` without one."""
+    segments = [s for s in plan.segments if s.label in labels]
+    if not segments:
+        return None, None
+    t, q = checker.samples(plan.trajectory)
+    within = np.zeros(len(t), bool)
+    for s in segments:
+        within |= (t >= s.start) & (t <= s.start + s.duration)
+    touch = neighbours.first_fast_touch(t, q[:, :checker.capsules.arm.dof], within)
+    if touch is None:
+        return None, None
+    return touch, next(s for s in segments if s.start <= touch.time <= s.start + s.duration)
 
 
 def check(checker, plan, allowed):

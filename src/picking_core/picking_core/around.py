@@ -14,13 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from .approaches import Blocked, BrakeBlocked
-from .planning.joint_path import NoPath, clear_edge, rrt_connect
+from .planning.joint_path import REFINE, NoPath, clear_edge, doubled, rrt_connect
 
 #: The via-point method that times a pose goal's move through a detour, for each pose method.
 VIA_METHOD = {'cubic': 'quintic_via', 'quintic': 'quintic_via', 'lspb': 'via_lspb', 'optimal': 'optimal'}
-#: Times the detour's waypoints are doubled when its timed path cuts a corner into an obstacle (via
-#: points passed at speed round the corners of the clear polyline between them).
-REFINE = 3
 
 
 def plan_pose(planner, checker, start, T_goal, method=None):
@@ -95,14 +92,6 @@ def _around(planner, checker, stop, tries, method, label, contact):
                 plural = 's' * (waypoints != 1)
                 plan.extra['detours'] = f'{label} around obstacles through {waypoints} waypoint{plural}'
                 return plan
-            points = _doubled(points)
+            points = doubled(points)
         why = f'the timed way around still touches: {left}'
     raise Blocked(f'the plan would hit an obstacle: {contact}; {why}')
-
-
-def _doubled(points):
-    """``points`` with the midpoint of each straight leg between them added."""
-    out = np.empty((2 * len(points) - 1, points.shape[1]))
-    out[::2] = points
-    out[1::2] = 0.5 * (points[:-1] + points[1:])
-    return out

@@ -108,6 +108,10 @@ class PickSettings:
         this far from it, rad (0: only the requested one; see :mod:`picking_core.approaches`).
     apple_region : float
         Radius around the apple's centre where touching is allowed (the apple and its stem), m.
+    apple_pass_speed : float
+        In a harvest (with a collision checker), the fastest a link may pass an apple still on the
+        tree, m/s: a joint move passing one faster goes around those apples where a way is found
+        (:mod:`picking_core.collision.fruit`); 0: the other apples are not looked at.
     """
 
     home_positions: tuple = HOME_POSITIONS
@@ -130,6 +134,7 @@ class PickSettings:
     box_blend_radius: float = 0.0
     approach_cone: float = float(np.radians(45.0))
     apple_region: float = 0.06
+    apple_pass_speed: float = 0.0
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -174,6 +179,8 @@ class PickSettings:
             raise ValueError(f'approach_cone must be in [0, pi/2] rad, got {self.approach_cone}')
         if not (np.isfinite(self.apple_region) and self.apple_region >= 0.0):
             raise ValueError(f'apple_region must be a finite number >= 0 m, got {self.apple_region}')
+        if not (np.isfinite(self.apple_pass_speed) and self.apple_pass_speed >= 0.0):
+            raise ValueError(f'apple_pass_speed must be a finite number >= 0 m/s, got {self.apple_pass_speed}')
         if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
             raise ValueError('blend needs approach_method and transfer_method optimal (jerk-limited moves to '
                              'and from moving states)')
@@ -217,7 +224,7 @@ def _offset(T, local):
 @dataclass
 class _Draft:
     """A cycle being planned: its knot poses and joints (P1 and P4 where the blends meet the lines), the
-    detours asked for, and the parts planned so far with their Cartesian paths."""
+    detours and slowed joint moves asked for, and the parts planned so far with their Cartesian paths."""
 
     poses: dict
     q: dict
@@ -225,6 +232,7 @@ class _Draft:
     detours: dict
     q1: np.ndarray
     q4: np.ndarray
+    slow: dict = field(default_factory=dict)
     q_apple: np.ndarray = None
     q_top: np.ndarray = None
     q_box: np.ndarray = None
@@ -246,6 +254,7 @@ class PickCycle:
         self.arm = planner.arm
         self.s = settings
         self.checker = checker
+        self._slowed = {}
 
     def key_poses(self, T_apple):
         """P1..P5 as 4x4 poses (P0 is a joint configuration)."""
@@ -261,7 +270,7 @@ class PickCycle:
         P4[2, 3] += s.box_drop_height
         return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
 
-    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True):
+    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True, neighbours=None):
         """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
 
         A harvest chains cycles (:mod:`picking_core.harvest`): ``from_box`` starts at rest in the
@@ -273,29 +282,33 @@ class PickCycle:
         the plan's ``extra`` says which was taken: ``approach`` in words, ``approach_tilt`` and
         ``approach_roll`` in rad). Raises Unreachable naming the knot
         point that cannot be reached, or :class:`~picking_core.approaches.Blocked` naming the
-        obstacle.
+        obstacle. With a checker, ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`: the
+        other apples on the tree) are passed slowly: a joint move that would pass one fast goes around them.
         """
         return approaches.clear_cycle(
-            self, lambda T, detours=None, branch=None: self._plan(start, T, gripper_start, from_box, home_after,
-                                                                  detours, branch), T_apple)
+            self, lambda T, detours=None, branch=None, slow=None: self._plan(
+                start, T, gripper_start, from_box, home_after, detours, branch, slow), T_apple, neighbours)
 
-    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None):
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
-        than the one nearest home). The steps of Table 1 in order."""
+        than the one nearest home); ``slow`` maps the label of a joint move to the fraction of the planner's
+        speed it runs at (past apples it would bruise). The steps of Table 1 in order."""
         start = self.planner.check_start(start)
         if self.s.blend and (self.planner.settings.cartesian_profile != 'optimal' or self.planner.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
                              'entered and left at speed)')
         d = self._knots(T_apple, branch, detours or {})
+        d.slow = dict(slow or {})
         rise_line = self._leave_start(d, start, from_box)
         self._reach_apple(d, rise_line)
         d.add('grasp', 'dwell', trajectory.hold(d.q_apple, self._gripper_time(self.s.grasp_time)))
         self._carry_to_box(d)
         d.add('release', 'dwell', trajectory.hold(d.q_box, self._gripper_time(self.s.release_time)))
         if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
-            for part in self._home_from_box((d.q_box, 0.0 * d.q_box, 0.0 * d.q_box), d.detours.get('P0 back home')):
+            for part in self._home_from_box((d.q_box, 0.0 * d.q_box, 0.0 * d.q_box), d.detours.get('P0 back home'),
+                                            self._mover(d, 'P0 back home')):
                 d.add(*part)
         return self._with_gripper(d.parts, d.cart, gripper_start)
 
@@ -346,10 +359,11 @@ class PickCycle:
         stop, q_rest = pl.come_to_rest(start)
         if stop is not None:
             d.add('brake', 'quintic', stop)
+        mover = self._mover(d, 'P0 home')
         if 'P0 home' in d.detours:
-            d.add('P0 home', s.transfer_method, self._detour([q_rest, *d.detours['P0 home'], d.home], None, None))
+            d.add('P0 home', s.transfer_method, self._detour([q_rest, *d.detours['P0 home'], d.home], None, None, mover))
         elif np.abs(q_rest - d.home).max() > 1e-4:
-            d.add('P0 home', s.approach_method, pl.joint_move(q_rest, d.home, s.approach_method))
+            d.add('P0 home', s.approach_method, mover.joint_move(q_rest, d.home, s.approach_method))
         return None
 
     def _approach(self, d, line, rise=None):
@@ -358,10 +372,11 @@ class PickCycle:
         vf, af = self._blend_state(line, False) or (None, None)
         q0 = d.home if rise is None else rise.end_state()[0]
         v0, a0 = (None, None) if rise is None else (self._blend_state(rise, True) or (None, None))
+        mover = self._mover(d, 'P1 approach')
         if 'P1 approach' in d.detours:
             return self._detour([q0, *d.detours['P1 approach'], line.start_state()[0]],
-                                None if v0 is None else (v0, a0), None if vf is None else (vf, af))
-        return self.planner.joint_move(q0, line.start_state()[0], self.s.approach_method, v0=v0, a0=a0, vf=vf, af=af)
+                                None if v0 is None else (v0, a0), None if vf is None else (vf, af), mover)
+        return mover.joint_move(q0, line.start_state()[0], self.s.approach_method, v0=v0, a0=a0, vf=vf, af=af)
 
     def _reach_apple(self, d, rise_line):
         """P1 approach and P2, the straight line to the apple (after the line out of the box, from the box)."""
@@ -389,9 +404,9 @@ class PickCycle:
         # The via point lies between the corners P3 and P4, where the transfer would turn without blends.
         corner = q_lift if d.q_top is None else d.q_top
         through = d.detours.get('P4 above the box', [self._clearance(corner, d.q['P4'])])
-        return self.planner.via(np.array([q_lift, *through, q_box]), self.s.transfer_method,
-                                self._blend_state(lift, True),
-                                None if into_box is None else self._blend_state(into_box, False))
+        return self._mover(d, 'P4 above the box').via(
+            np.array([q_lift, *through, q_box]), self.s.transfer_method, self._blend_state(lift, True),
+            None if into_box is None else self._blend_state(into_box, False))
 
     def _carry_to_box(self, d):
         """P3, the lift that detaches the apple, flowing into the transfer to P4, and P5, the line into the box."""
@@ -413,13 +428,24 @@ class PickCycle:
         d.add('P5 into the box', 'line', line, path)
         d.q_box = line.end_state()[0]
 
-    def _detour(self, qs, start, end):
+    def _detour(self, qs, start, end, mover=None):
         """A joint move through the waypoints ``qs``, timed with the transfer's via-point method (from
-        and to rest unless that method is ``optimal``, which also starts and ends moving)."""
+        and to rest unless that method is ``optimal``, which also starts and ends moving) by ``mover`` (a
+        planner; default the cycle's)."""
         method = self.s.transfer_method
         if method != 'optimal':
             start = end = None
-        return self.planner.via(np.array(qs), method, start, end)
+        return (mover or self.planner).via(np.array(qs), method, start, end)
+
+    def _mover(self, d, label):
+        """The planner of joint move ``label``: the cycle's, or one at a fraction of its speed (``d.slow``)."""
+        fraction = d.slow.get(label)
+        if fraction is None:
+            return self.planner
+        if fraction not in self._slowed:
+            self._slowed[fraction] = Remembered(self.planner.with_settings(
+                speed_scale=self.planner.settings.speed_scale * fraction))
+        return self._slowed[fraction]
 
     def back_home(self, start, gripper_start=None):
         """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper;
@@ -440,11 +466,12 @@ class PickCycle:
         whole = trajectory.stack([plan.trajectory, gripper])
         return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + (GRIPPER_JOINT,), events)
 
-    def _home_from_box(self, start, through=None):
+    def _home_from_box(self, start, through=None, mover=None):
         """``(label, method, traj, path)`` of each part from rest in the box back home: straight up out of
         the box (the way in, reversed), flowing into the move home, or (without blends) through P4;
-        ``through``: joint waypoints of the move home (a detour)."""
-        pl, s = self.planner, self.s
+        ``through``: joint waypoints of the move home (a detour); ``mover``: the move home's planner (default the
+        cycle's)."""
+        pl, s = mover or self.planner, self.s
         home = np.asarray(s.home_positions, float)
         q_box, q_top, rise_line = self._out_of_the_box(start)
         if not s.blend:
@@ -454,7 +481,7 @@ class PickCycle:
         def home_from(rise):
             v0, a0 = rise.end_state()[1:]
             if through:
-                return self._detour([rise.end_state()[0], *through, home], (v0, a0), None)
+                return self._detour([rise.end_state()[0], *through, home], (v0, a0), None, pl)
             return pl.joint_move(rise.end_state()[0], home, 'optimal', v0=v0, a0=a0)
         moved, (traj, path) = self._quickest(BLEND_SPEEDS, rise_line, home_from)
         return [('P4 out of the box', 'line', traj, path), ('P0 back home', s.transfer_method, moved, None)]

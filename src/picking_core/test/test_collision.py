@@ -188,10 +188,10 @@ def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
     T = apple()
     pick = PickCycle(cycle.planner, cycle.s)
 
-    def plan_one(pose, detours=None, branch=None):
+    def plan_one(pose, detours=None, branch=None, slow=None):
         if np.allclose(pose, T):
             raise Unreachable('path fails at t = 0.244 s: wrist_3_joint would jump 0.363 rad')
-        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours)
+        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours, branch, slow)
     plan = approaches.clear_cycle(pick, plan_one, T)
     assert plan.extra['approach_tilt'] > 0.0 or plan.extra['approach_roll'] != 0.0
     narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))

@@ -14,6 +14,9 @@ GROW = 0.25
 EDGE_STEP = 0.01
 #: Samples drawn toward the goal tree's root.
 GOAL_BIAS = 0.1
+#: Times a path's waypoints are doubled when the motion timed through them still cuts a corner into what the path
+#: avoids (via points passed at speed round the corners of the clear polyline between them).
+REFINE = 3
 
 
 class NoPath(ValueError):
@@ -103,3 +106,11 @@ def shortcut(colliding, path):
         clear = [j for j, a, b in zip(farther, ends - [len(x) for x in samples], ends) if not hit[a:b].any()]
         kept.append(max(clear) if clear else i + 1)
     return path[kept]
+
+
+def doubled(points):
+    """``points`` (M, dof) with the midpoint of each straight leg between them added."""
+    out = np.empty((2 * len(points) - 1, points.shape[1]))
+    out[::2] = points
+    out[1::2] = 0.5 * (points[:-1] + points[1:])
+    return out

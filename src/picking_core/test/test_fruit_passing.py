@@ -1,0 +1,112 @@
+"""Apples the arm is not picking: found where a link passes one fast, and passed slowly or around."""
+
+import numpy as np
+from conftest import shipped_harvest, shipped_orchard
+
+from picking_core import approaches
+from picking_core.approaches import DETOURS, check
+from picking_core.collision import Allowed, CollisionChecker
+from picking_core.collision.fruit import Neighbours
+from picking_core.harvest import Harvest
+from picking_core.kinematics.capsules import ArmCapsules
+from picking_core.pick_cycle import PickCycle
+
+#: m/s: the pass speed these tests plan with (the shipped configuration leaves it off).
+PASS = 0.8
+
+
+def _cycle(seed=1, apple_pass_speed=PASS):
+    shipped = shipped_harvest(apple_pass_speed=apple_pass_speed)
+    orchard = shipped_orchard(12, seed)
+    checker = CollisionChecker(ArmCapsules.from_arm(shipped.arm), orchard.scene)
+    return PickCycle(shipped.cycle.planner, shipped.cycle.s, checker), orchard
+
+
+def _fast_in_joint_moves(cycle, plan, neighbours):
+    t, q = cycle.checker.samples(plan.trajectory)
+    within = np.zeros(len(t), bool)
+    for s in plan.segments:
+        if s.label in DETOURS:
+            within |= (t >= s.start) & (t <= s.start + s.duration)
+    return neighbours.first_fast_touch(t, q[:, :cycle.arm.dof], within)
+
+
+def test_a_link_touching_an_apple_counts_only_when_it_moves_faster_than_the_bruising_margin(arm):
+    caps = ArmCapsules.from_arm(arm)
+    q0 = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
+    tool = caps.segments(q0)[0]
+    k = int(np.argmax(np.linalg.norm(tool.mean(axis=1), axis=1)))       # the capsule farthest out
+    on_it = tool[k].mean(axis=0)
+    t = np.linspace(0.0, 1.0, 101)
+    q = q0 + np.outer(t, [0.05, 0, 0, 0, 0, 0])                         # the waist turns slowly
+    slow = Neighbours(caps, [on_it], 0.8)
+    assert slow.first_fast_touch(t, q) is None
+    fast = slow.first_fast_touch(t / 40.0, q)                            # the same way, 40 times faster
+    assert fast is not None and fast.speed > slow.speed and fast.apple == 0
+    far = Neighbours(caps, [on_it + [0.0, 0.0, 0.5]], 0.8)
+    assert far.first_fast_touch(t / 40.0, q) is None
+    assert Neighbours(caps, [], 0.8).first_fast_touch(t, q) is None
+    assert slow.touching(q[:1]).all() and not slow.touching(q[:1], ignore=[0]).any()
+    assert list(slow.touched_at(q[:1])) == [0]
+
+
+def test_a_joint_move_that_would_pass_a_neighbouring_apple_fast_goes_around_the_apples():
+    cycle, orchard = _cycle()
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 7                                   # its transfer passes apple 5 at full speed
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    direct = cycle.plan((home, z, z), orchard.apples[target])
+    assert _fast_in_joint_moves(cycle, direct, neighbours) is not None
+    around = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    assert _fast_in_joint_moves(cycle, around, neighbours) is None
+    assert 'waypoint' in around.extra['detours']
+    assert check(cycle.checker, around, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
+    assert np.allclose(around.trajectory.end_state()[0], direct.trajectory.end_state()[0], atol=1e-9)
+
+
+def test_a_harvest_passes_the_apples_still_on_the_tree_and_forgets_those_in_the_box():
+    cycle, orchard = _cycle()
+    harvest = Harvest(cycle)
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    apples = list(orchard.apples)[:6]
+    plan = harvest.plan((home, z, z), apples)
+    centres = {i: T[:3, 3] for i, T in enumerate(apples)}
+    fast = []
+    for a in plan.apples:
+        centres.pop(a.index)                     # picked in this cycle: no longer a neighbour after
+        seg_t = [(s.start, s.start + s.duration) for s in plan.plan.segments
+                 if s.label.startswith(f'apple {a.index}: ') and s.label.split(': ', 1)[1] in DETOURS]
+        t, q = cycle.checker.samples(plan.plan.trajectory)
+        within = np.zeros(len(t), bool)
+        for lo, hi in seg_t:
+            within |= (t >= lo) & (t <= hi)
+        later = Neighbours(cycle.checker.capsules, list(centres.values()), PASS)
+        fast.append(later.first_fast_touch(t, q[:, :cycle.arm.dof], within))
+    assert len(plan.apples) >= 5
+    assert sum(f is not None for f in fast) <= 1, fast
+
+
+def test_with_the_pass_speed_off_a_harvest_plans_each_cycle_as_alone():
+    off, orchard = _cycle(apple_pass_speed=0.0)
+    home, z = np.asarray(off.s.home_positions, float), np.zeros(off.arm.dof)
+    apples = list(orchard.apples)[:3]
+    first = Harvest(off).plan((home, z, z), apples).apples[0]
+    alone = off.plan((home, z, z), apples[first.index], home_after=False)
+    assert abs((first.end - first.start) - alone.duration) < 1e-9
+
+
+def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_them_slowly(monkeypatch):
+    cycle, orchard = _cycle()
+    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 7
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    direct = cycle.plan((home, z, z), orchard.apples[target])
+    slowed = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    assert _fast_in_joint_moves(cycle, slowed, neighbours) is None
+    assert '%' in slowed.extra['slowed']
+    assert slowed.duration > direct.duration
+    allowed = Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
+    assert check(cycle.checker, slowed, allowed) is None
