@@ -1,6 +1,7 @@
 """Apples that exist: a harvest counted by the simulator's own judgement of the measured arm (every apple
-grasped, pulled off, carried and in the box, nothing knocked or bruised), and the camera's detections,
-through /tf_static, where the apples truly hang."""
+grasped, pulled off, carried and in the box, nothing knocked or bruised; a goal's apple that hangs nowhere missed,
+as the measured gripper shows, and not claimed), and the camera's detections, through /tf_static, where the apples
+truly hang."""
 
 import time
 
@@ -46,8 +47,12 @@ def test_a_harvest_puts_every_apple_in_the_box_by_the_simulators_count(tmp_path)
         assert np.max(np.min(np.linalg.norm(seen[:, None] - hanging[None], axis=2), axis=1)) < 0.02
         assert np.allclose(covs[0], np.eye(3) * 0.003 ** 2)
 
+        # The goal adds an apple where none hangs: the fingers close on air there.
+        apples = synthetic_tree(n, seed)
+        others = synthetic_tree(6, seed + 5)
+        absent = max(others, key=lambda T: min(np.linalg.norm(T[:3, 3] - A[:3, 3]) for A in apples))
         msg = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat())
-                               for T in synthetic_tree(n, seed)])
+                               for T in [*apples, absent]])
         msg.header.frame_id, msg.header.stamp = 'base_link', client.get_clock().now().to_msg()
         mark = client.mark()
         pub.publish(msg)
@@ -65,9 +70,14 @@ def test_a_harvest_puts_every_apple_in_the_box_by_the_simulators_count(tmp_path)
         # (A link may brush an apple it does not pick: the planner avoids the scene, not the other apples. Such
         # a knock is reported; none bruises.)
         assert (last['bruised'], last['missed_grasps'], last['dropped']) == ('0', '0', '0'), last
-        # The harvest's own claims agree with the world's.
-        picked = [m for _, m in client.planner_status[mark['planner']:] if status_values(m).get('apple_state') == 'picked']
-        assert len(picked) == n
+        # The harvest's own claims agree with the world's: the apple that hangs nowhere is missed, not claimed.
+        said = [status_values(m) for _, m in client.planner_status[mark['planner']:]]
+        picked = [v for v in said if v.get('apple_state') == 'picked']
+        assert len(picked) == n and all(v['verified'] == 'True' for v in picked), picked
+        missed = [v for v in said if v.get('apple_state') == 'missed']
+        assert [v['apple'] for v in missed] == [str(n)], said
+        end = next(v for v in reversed(said) if v.get('kind') == 'harvest' and v.get('state') == 'succeeded')
+        assert (end['picked'], end['missed'], end['missed_apples']) == (str(n), '1', str(n)), end
 
 
 def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path):

@@ -189,29 +189,35 @@ def run_arc_scenario(demo, spin_until, rec):
 
 
 def run_harvest_scenario(demo, spin_until, rec, node):
-    """A seeded synthetic tree harvested with picking-goal; its apples and visiting order published as
-    markers (recorded, so that Foxglove shows the tree)."""
+    """A seeded synthetic tree, hanging in the simulator, harvested with picking-goal: the apples its camera
+    sees (``harvest_from: camera``, the planner's fruit map) or the tree's own poses (``tree``); its apples and
+    visiting order published as markers (recorded, so that Foxglove shows the tree)."""
     from visualization_msgs.msg import MarkerArray
 
     from picking_core.harvest import synthetic_tree
 
-    from .demo_report import harvest_markers, harvest_statuses
+    from .demo_report import harvest_markers, harvest_statuses, on_the_tree
     n, seed = int(demo.get('harvest_apples', 20)), int(demo.get('harvest_seed', 1))
-    log(f'scenario 3, a tree: {n} apples (seed {seed}), harvested with picking-goal harvest')
+    seen = demo.get('harvest_from', 'camera') == 'camera'
+    how = 'harvest --seen (the apples its camera sees)' if seen else f'harvest --tree {n} --seed {seed}'
+    log(f'scenario 3, a tree: {n} apples (seed {seed}) in the simulator, harvested with picking-goal {how}')
     markers = node.create_publisher(MarkerArray, 'harvest_markers', 10)
     rec.add(node, {'harvest_markers': MarkerArray}, 10)
     first = rec.count('planned_trajectory')
     t0 = time.monotonic()
-    done = run_tool([HERE / 'picking-goal', 'harvest', '--tree', n, '--seed', seed], 60 + 10 * n)
+    command = ['harvest', '--seen'] if seen else ['harvest', '--tree', n, '--seed', seed]
+    done = run_tool([HERE / 'picking-goal', *command], 60 + 10 * n)
     if done.returncode != 0:
         said = (done.stderr.strip() or done.stdout.strip() or f'exit code {done.returncode}').splitlines()[-1]
         raise RuntimeError(f'the harvest failed: {said.strip()}')
     key = done.stdout.split(' goal ')[1].split()[0]
     spin_until(lambda: rec.count('planned_trajectory') > first, 5.0, 'the harvest trajectory')
     trajectory = rec.messages('planned_trajectory')[first][1]
-    markers.publish(harvest_markers(synthetic_tree(n, seed=seed), harvest_statuses(rec, key), trajectory.header))
+    tree = synthetic_tree(n, seed=seed)
+    markers.publish(harvest_markers(tree, on_the_tree(harvest_statuses(rec, key), tree), trajectory.header))
     spin_until(lambda: rec.count('harvest_markers') > 0, 5.0, 'the harvest markers')
-    return {'goal': key, 'trajectory_index': first, 'apples': n, 'seed': seed, 'wall': time.monotonic() - t0}
+    return {'goal': key, 'trajectory_index': first, 'apples': n, 'seed': seed, 'wall': time.monotonic() - t0,
+            'seen': seen}
 
 
 def run_platform(rec, events, config, out, demo):

@@ -25,6 +25,8 @@ import threading
 import time
 from pathlib import Path
 
+import yaml
+
 from picking_common.middleware import use_fast_discovery
 
 #: The nodes in start order: their executable, ROS node name and parameter files in config/.
@@ -197,12 +199,26 @@ class Stack:
         unknown = set(without) - set(REPLACEABLE)
         if unknown:
             raise ValueError(f'only {" and ".join(REPLACEABLE)} can be left out, not {", ".join(sorted(unknown))}')
+        if 'picking-sim' not in without and not self._sim_tree():
+            # A simulator with no apples leaves the gripper nothing to close on: its planner claims by the plan.
+            self.args['picking-planner'] = ['-p', 'grasp_check:=false', *self.args['picking-planner']]
         self.starts = dict.fromkeys(NODES, 0)
         self.nodes = {}
         for name in NODES:
             if name not in without:
                 self.start(name)
         self.foxglove = None if foxglove is None else foxglove_process(self.ns, foxglove, self.log_dir, echo)
+
+    def _sim_tree(self):
+        """The simulator's ``tree`` ('' when it hangs none): its last ``tree:=`` argument, else its files'."""
+        given = [a.split(':=', 1)[1] for a in self.args['picking-sim'] if a.startswith('tree:=')]
+        if given:
+            return given[-1].strip()
+        tree = ''
+        for f in self.files['picking-sim']:
+            for node in (yaml.safe_load((self.config / f).read_text()) or {}).values():
+                tree = str(((node or {}).get('ros__parameters') or {}).get('tree', tree) or '')
+        return tree.strip()
 
     def start(self, name):
         """(Re)start one node; returns its :class:`NodeProcess`."""

@@ -63,7 +63,7 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
     the markers of the tree and its plot."""
     from std_msgs.msg import Header
 
-    from picking_bringup.demo_report import harvest_markers, harvest_statuses
+    from picking_bringup.demo_report import harvest_markers, harvest_statuses, on_the_tree
     from picking_bringup.plots import plot_harvest
     from picking_common.status import status
     from picking_core.harvest import synthetic_tree
@@ -87,6 +87,7 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
     assert got['skipped'] == [(1, 'unreachable: P1 (approach)')]
     assert got['accepted']['order_estimate'] == '3' and got['final']['picked'] == '2'
     apples = synthetic_tree(3, seed=2)
+    assert on_the_tree(got, apples)['picked'] == [(2, 4.0), (0, 8.0)]       # no places said: as numbered
     markers = harvest_markers(apples, got, Header(frame_id='base_link')).markers
     texts = {m.id: m.text for m in markers if m.ns == 'order'}
     assert texts == {0: '2', 1: 'skipped', 2: '1'}
@@ -94,6 +95,22 @@ def test_the_harvest_section_reads_each_apple_from_the_statuses_and_draws_the_tr
     assert [p.x for p in order.points] == [apples[2][0, 3], apples[0][0, 3]]
     tool = np.array([T[:3, 3] for T in apples])
     assert plot_harvest(tmp_path / 'h.png', apples, [2, 0], [1], tool, 'a tree').stat().st_size > 10_000
+
+
+def test_a_harvest_from_the_camera_is_read_against_the_tree_by_place():
+    """The planner numbers the apples its camera saw; the report matches each to the tree's apple where it is (a
+    few millimetres off), and names an apple that is none of the tree's."""
+    from picking_bringup.demo_report import on_the_tree
+    from picking_core.harvest import synthetic_tree
+    tree = synthetic_tree(4, seed=3)
+    near = {k: tuple(tree[i][:3, 3] + 0.004) for k, i in ((0, 3), (1, 0))}
+    near[3] = tuple(tree[2][:3, 3] - 0.004)
+    said = {'picked': [(0, 4.0), (1, 8.0), (2, 9.0)], 'missed': [(3, 'the gripper held nothing')], 'skipped': [],
+            'accepted': {}, 'final': {}, 'places': {**near, 2: (9.0, 9.0, 9.0)}}
+    got = on_the_tree(said, tree)
+    assert got['picked'] == [(3, 4.0), (0, 8.0)] and got['unmatched'] == [2]
+    assert got['missed'] == [(2, 'the gripper held nothing')]
+    assert sorted(got['places']) == [0, 2, 3]
 
 
 def test_the_platform_figure_draws_each_arms_apples_path_and_links(tmp_path):

@@ -60,3 +60,25 @@ def test_nodes_that_stop_cleanly_give_0_and_no_log(tmp_path, capsys):
     assert run(stack, args(), threading.Event()) == 0
     assert 'its log' not in capsys.readouterr().err
     assert os.path.exists(tmp_path / '0.log')
+
+
+def test_a_simulator_that_hangs_no_apples_has_its_planner_claim_apples_by_the_plan(tmp_path, monkeypatch):
+    """With nothing to grasp the gripper closes on air: the planner's grasp check would miss every apple."""
+    import shutil
+
+    from picking_bringup import stack as bringup
+    from picking_bringup.shipped import config_dir
+    started = {}
+    monkeypatch.setattr(bringup.Stack, 'start', lambda self, name: started.__setitem__(name, list(self.args[name])))
+    bringup.Stack(log_dir=tmp_path)
+    assert started['picking-planner'][:2] == ['-p', 'grasp_check:=false']
+    bringup.Stack(log_dir=tmp_path, args={'picking-sim': ['-p', 'tree:=synthetic 6 1']})
+    assert 'grasp_check:=false' not in started['picking-planner']
+    config = tmp_path / 'config'
+    shutil.copytree(config_dir(), config)
+    sim = config / 'sim.yaml'
+    sim.write_text(sim.read_text().replace('tree: ""', 'tree: "orchard 12 3"'))
+    bringup.Stack(log_dir=tmp_path, config=config)
+    assert 'grasp_check:=false' not in started['picking-planner']
+    bringup.Stack(log_dir=tmp_path, without=('picking-sim',))          # a real arm: its gripper is judged
+    assert 'grasp_check:=false' not in started['picking-planner']

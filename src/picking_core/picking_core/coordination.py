@@ -259,7 +259,8 @@ class PlatformRun:
             elif word == 'skipped':
                 self.events.append(('WARN', f'{a.namespace} skipped apple {i}: {message.split(": ", 1)[-1]}'))
                 self._retry(i, message)
-            elif word == 'failed':
+            elif word in ('failed', 'missed'):
+                self.events.append(('WARN', f'{a.namespace} {word} apple {i}: {message.split(": ", 1)[-1]}'))
                 self.failed.append(i)
         if state not in FINAL:
             return

@@ -183,6 +183,7 @@ class FruitWorld:
         self._closed_from = 0.0          # the opening the closure under way started from
         self._touching = set()           # (apple, link) pairs in contact at the last sample
         self._links = None               # the last sample's capsule segments, for their speed
+        self._tool = None                # the last sample's tool pose
 
     # -- what is where ------------------------------------------------------------------------------
     def __len__(self):
@@ -233,7 +234,21 @@ class FruitWorld:
             if len(pairs) or self._touching:
                 self._knocks(float(t), segs, link_radii, names, pairs, events)
             self._links = (float(t), segs)
+            self._tool = tool
         return events
+
+    def finger_stop(self):
+        """m: the opening the fingers cannot close past at the last sample: the width of the apple they hold, or of
+        an apple on the tree whose centre is between them (the widest that fits between them: fingers already
+        closed narrower push an apple aside, they are not pushed open); 0 with none (they close freely). A
+        simulated gripper stops there, so that its measured opening tells a grasp from a closing on air."""
+        if self._grip:
+            return float(max(2 * self.radius[i] for i in self._grip))
+        if self._tool is None:
+            return 0.0
+        local = (self.p - self._tool[:3, 3]) @ self._tool[:3, :3]
+        between = (self.fate == Fate.ON_TREE) & self.settings.gripper.captures(local) & (2 * self.radius <= self._opening)
+        return float(2 * self.radius[between].max()) if between.any() else 0.0
 
     def _near(self, links, link_radii):
         """Per sample of capsule segments ``links`` (N, K, 2, 3): the (apple, link) pairs within NEAR of each other

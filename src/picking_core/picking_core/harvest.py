@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import trajectory
+from .collision.fruit import Neighbours
 from .kinematics import Unreachable
 from .planning import Plan
 
@@ -25,11 +26,13 @@ from .planning import Plan
 @dataclass(frozen=True)
 class AppleTimes:
     """One apple of a harvest plan: its index in the goal and when its cycle runs, s from the plan's
-    start (``end``: its release ends, the apple is in the box)."""
+    start (``end``: its release ends, the apple is in the box); ``held``: from when to when the closed
+    fingers carry it (its grasp's end to its release's start), or None (a plan without a gripper)."""
 
     index: int
     start: float
     end: float
+    held: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,9 @@ class HarvestPlan:
         the last box to home) in the planned order and in the goal's order.
     ordering_s : float
         s the ordering took.
+    empty_below : float
+        m: a measured finger opening below this while an apple should be in them holds nothing (0: not
+        judged).
     """
 
     plan: Plan
@@ -64,6 +70,7 @@ class HarvestPlan:
     ordered: float = 0.0
     given: float = 0.0
     ordering_s: float = 0.0
+    empty_below: float = 0.0
 
     def picked_by(self, t):
         """The apples in the box at ``t`` s from the plan's start."""
@@ -196,12 +203,20 @@ class Harvest:
         self.home = np.asarray(cycle.s.home_positions, float)
         self._cycles = {}   # cycles planned, by their start, apple and gripper: a coordinator plans many harvests
 
-    def _cycle(self, state, T, gripper, chained):
-        """The cycle of apple ``T`` from ``state`` (remembered: the same inputs plan the same cycle)."""
-        key = (tuple(np.asarray(x, float).tobytes() for x in state), np.asarray(T, float).tobytes(), gripper, chained)
+    def _cycle(self, state, T, gripper, chained, on_tree=()):
+        """The cycle of apple ``T`` from ``state``, passing the apples ``on_tree`` (centres, m) no faster than the
+        settings' ``apple_pass_speed`` (with a checker); remembered: the same inputs plan the same cycle."""
+        checker, speed = self.cycle.checker, self.cycle.s.apple_pass_speed
+        on_tree = np.asarray(on_tree, float).reshape(-1, 3)
+        if checker is None or speed <= 0.0:
+            on_tree = on_tree[:0]                 # not looked at: the same cycle whatever hangs beside it
+        key = (tuple(np.asarray(x, float).tobytes() for x in state), np.asarray(T, float).tobytes(), gripper, chained,
+               on_tree.tobytes())
         if key not in self._cycles:
+            neighbours = Neighbours(checker.capsules, on_tree, speed) if len(on_tree) else None
             try:
-                self._cycles[key] = self.cycle.plan(state, T, gripper, from_box=chained, home_after=False)
+                self._cycles[key] = self.cycle.plan(state, T, gripper, from_box=chained, home_after=False,
+                                                    neighbours=neighbours)
             except (Unreachable, ValueError) as exc:
                 self._cycles[key] = exc
             if len(self._cycles) > 4096:
@@ -282,14 +297,21 @@ class Harvest:
         ordering_s = time.perf_counter() - t0
         plans, times, state, gripper, chained = [], [], start, gripper_start, from_box
         t = 0.0
+        # Every apple of the goal hangs on the tree until its own cycle picks it (those skipped stay).
+        on_tree = dict(zip(range(len(apples)) if indices is None else indices,
+                           (np.asarray(T, float)[:3, 3] for T in apples)))
         for index, T, _, _ in ok:
+            others = [c for i, c in on_tree.items() if i != index]
             try:
-                p = self._cycle(state, T, gripper, chained)
+                p = self._cycle(state, T, gripper, chained, others)
             except (Unreachable, ValueError) as exc:
                 skipped.append(Skipped(index, str(exc)))
                 continue
+            on_tree.pop(index)
             plans.append((f'apple {index}', p))
-            times.append(AppleTimes(index, t, t + p.duration))
+            held = (t + p.extra['grasp_end'], t + p.extra['release_start']) \
+                if 'grasp_end' in p.extra and 'release_start' in p.extra else None
+            times.append(AppleTimes(index, t, t + p.duration, held))
             t += p.duration
             q_end = p.trajectory.end_state()[0]
             state = (q_end[:self.arm.dof], np.zeros(self.arm.dof), np.zeros(self.arm.dof))
@@ -301,7 +323,8 @@ class Harvest:
         skipped = tuple(sorted(skipped, key=lambda s: s.index))
         plan = replace(_joined(plans), extra=dict(apples=len(times), skipped=len(skipped), order_estimate=est,
                                                   given_order_estimate=given, ordering_ms=ordering_s * 1e3))
-        return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s)
+        return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s,
+                           self.cycle.s.gripper_closed + HOLDING_MARGIN)
 
 
 class HarvestGoal:
@@ -331,6 +354,11 @@ class HarvestGoal:
 #: s after an apple's planned release that it is reported in the box (a loaded controller runs a
 #: little behind the plan's clock).
 REPORT_MARGIN = 0.1
+#: m above the closed fingers' opening that they must stay while they carry an apple: half the gap between
+#: the closed fingers (5.5 cm) and the smallest apple (6 cm); closed on air they come down to the closed opening.
+HOLDING_MARGIN = 0.0025
+#: s after the grasp's end that the fingers are judged (a drive reaches its stop a little after its command).
+GRIP_SETTLE = 0.1
 
 
 class HarvestRun:
@@ -343,6 +371,31 @@ class HarvestRun:
         self.plan, self.start, self.until, self.before = plan, start, np.inf, before
         self.reported = 0 if before is None else before.reported
         self.first = start if before is None else before.first      # when the goal's harvest began
+        # The goal's apples (by index): the narrowest opening measured while each was carried; and those missed.
+        self.grip = {} if before is None else before.grip
+        self.missed = {} if before is None else before.missed
+
+    def watch(self, t, opening):
+        """The fingers measured at ``opening`` (m) at ``t`` (the controller's clock): noted for the apple they
+        carry then."""
+        if self.plan.empty_below <= 0.0 or t >= self.until:
+            return
+        rel = t - self.start
+        for a in self.plan.apples:
+            if a.held is not None and a.held[0] + GRIP_SETTLE <= rel <= a.held[1]:
+                self.grip[a.index] = min(self.grip.get(a.index, np.inf), float(opening))
+
+    def holding(self, apple):
+        """Whether the fingers held ``apple`` (an AppleTimes) through its carry: True, False (they closed on
+        nothing, or lost it), None (not measured: no gripper, or no joint_states then)."""
+        narrowest = self.grip.get(apple.index)
+        if narrowest is None:
+            return None
+        return bool(narrowest >= self.plan.empty_below)
+
+    def miss(self, apple, why):
+        """``apple`` was not in the fingers (``why``, in words): not counted as picked."""
+        self.missed[apple.index] = why
 
     def _earlier(self):
         """The apples the runs before this one put in the box, and the apples they skipped."""
@@ -390,19 +443,23 @@ class HarvestRun:
         (with those of the runs it carries on from)."""
         earlier, skipped = self._earlier()
         skipped = sorted(skipped + list(self.plan.skipped), key=lambda x: x.index)
-        picked = earlier + list(self.plan.apples) if finished else self.picked_by(t)
+        done = earlier + list(self.plan.apples) if finished else self.picked_by(t)
+        picked = [a for a in done if a.index not in self.missed]
         end = self.start + self.plan.plan.duration if finished else max(min(t, self.until), self.first)
         took = end - self.first
-        return dict(picked=len(picked), skipped=len(skipped), planned=len(earlier) + len(self.plan.apples),
+        return dict(picked=len(picked), missed=len(done) - len(picked), skipped=len(skipped),
+                    planned=len(earlier) + len(self.plan.apples),
                     harvest_time=took, apples_per_hour=3600.0 * len(picked) / took if took > 0 else 0.0,
                     picked_apples=' '.join(str(a.index) for a in picked),
+                    missed_apples=' '.join(str(a.index) for a in done if a.index in self.missed),
                     skipped_apples=' '.join(str(x.index) for x in skipped))
 
     def words(self, t, finished):
         """The summary in words."""
         s = self.summary(t, finished)
-        return (f"{s['picked']} of {s['planned']} apples picked, {s['skipped']} skipped, {s['harvest_time']:.1f} s, "
-                f"{s['apples_per_hour']:.0f} apples/h")
+        missed = f"{s['missed']} missed (the fingers held nothing), " if s['missed'] else ''
+        return (f"{s['picked']} of {s['planned']} apples picked, {missed}{s['skipped']} skipped, "
+                f"{s['harvest_time']:.1f} s, {s['apples_per_hour']:.0f} apples/h")
 
 
 def _joined(plans):

@@ -120,3 +120,19 @@ def test_a_link_sweeping_through_an_apple_knocks_it_and_a_fast_one_bruises_it():
             arm.run(DT)
         assert 'knocked' in arm.kinds() and bool(w.bruised[0]) == bruised, (speed, arm.kinds())
         assert w.knocks[0] == 1                               # one contact, one knock
+
+
+def test_the_fingers_stop_at_the_width_of_the_apple_between_them_and_close_freely_on_air():
+    """What a simulated gripper's measured opening shows: the width of what it holds, or its closed opening."""
+    arm = Arm(world(), APPLE - [0.10, 0.0, 0.0])
+    assert arm.w.finger_stop() == 0.0                        # no sample yet
+    arm.run(0.2)
+    assert arm.w.finger_stop() == 0.0                        # the apple 10 cm ahead, not between the fingers
+    arm.run(0.5, to=APPLE)
+    assert arm.w.finger_stop() == pytest.approx(0.08)        # its centre at the grasp point
+    arm.run(0.25, opening=0.08).run(0.5, to=APPLE - [0.08, 0.0, 0.0])
+    assert arm.w.fate[0] == Fate.HELD and arm.w.finger_stop() == pytest.approx(0.08)   # carried: still in hand
+    arm.run(0.1, opening=OPEN)
+    assert arm.w.finger_stop() == 0.0                        # let go
+    closed = Arm(world(), APPLE - [0.10, 0.0, 0.0]).run(0.25, opening=CLOSED).run(0.5, to=APPLE)
+    assert closed.w.finger_stop() == 0.0                     # fingers closed on air are not pushed open by it

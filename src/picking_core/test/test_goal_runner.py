@@ -309,5 +309,38 @@ def test_a_harvest_whose_later_apples_a_new_obstacle_blocks_is_planned_again_as_
     runner.on_result(rest, 'succeeded', 0, '')
     picked = [s['apple'] for s in port.statuses if s.get('apple_state') == 'picked']
     assert len(picked) == len(set(picked)) and plan.apples[0].index in picked
+    # Each apple's status says where it was (the rest's goal keeps the apples' indices in the first).
+    for s in port.statuses:
+        if s.get('apple_state') in ('picked', 'skipped'):
+            assert np.allclose([s['x'], s['y'], s['z']], apples[s['apple']][:3, 3])
     assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['planned'] == len(apples) - len(
         rest.planned.harvest.skipped) - len(plan.skipped)
+
+
+def test_an_apple_the_fingers_were_measured_holding_is_picked_and_one_they_closed_on_air_is_missed(port):
+    """The planner claims an apple only as the measured gripper shows it: fingers resting on an apple's width
+    while they carry it are a pick; fingers closed to their closed opening held nothing (a knocked-off apple,
+    a closing beside one), and that apple is missed, with why, not counted."""
+    runner = GoalRunner(port)
+    R = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
+    apples = [np.block([[R, np.array([[0.7], [y], [0.6]])], [np.zeros((1, 3)), np.ones((1, 1))]]) for y in (0.1, 0.3)]
+    runner.take(Goal(Kind.HARVEST, 'h', Target(Kind.HARVEST, tuple(apples)), 0.0))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    plan = flight.planned.harvest
+    closed = shipped_harvest().cycle.s.gripper_closed
+    for apple, opening in zip(plan.apples, (0.075, closed + 0.0005)):
+        for s in np.linspace(apple.held[0] + 0.15, apple.held[1], 5):
+            port.t, port.meas = flight.start + s, (HOME.copy(), opening)
+            runner.tick()
+    port.t = flight.start + plan.plan.duration + 0.5
+    runner.tick()
+    runner.on_result(flight, 'succeeded', 0, '')
+    said = {s['apple']: s for s in port.statuses if s.get('apple_state')}
+    first, second = (said[a.index] for a in plan.apples)
+    assert first['apple_state'] == 'picked' and first['verified'] is True
+    assert second['apple_state'] == 'missed' and 'held nothing' in second['text'] and second['level'] == 'WARN'
+    final = port.statuses[-1]
+    assert final['state'] == 'succeeded' and final['picked'] == 1 and final['missed'] == 1
+    assert final['picked_apples'] == str(plan.apples[0].index) and final['missed_apples'] == str(plan.apples[1].index)
+    assert '1 missed' in final['text']

@@ -69,6 +69,7 @@ class PlannerNode(Node):
         self.frames = FrameListener(self)
         self.link = ControllerLink(self)
         self.runner = GoalRunner(self.link, Timing(self.get_parameter('start_delay').value))
+        self.runner.grasp_check = self.get_parameter('grasp_check').value
         self.link.runner = self.runner
         self.inputs = GoalInputs(self, self.runner, self.in_base)
         self.seen = SeenApples(self, self.runner, lambda header, timeout: self.in_base(header, 'detections', timeout),
@@ -144,6 +145,8 @@ class PlannerNode(Node):
                            enabled=changes.get('avoid_collisions'))
         if 'start_delay' in changes:
             self.runner.timing.lead = float(changes['start_delay'])
+        if 'grasp_check' in changes:
+            self.runner.grasp_check = bool(changes['grasp_check'])
         return SetParametersResult(successful=True)
 
     def _diagnose(self):

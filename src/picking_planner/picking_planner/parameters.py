@@ -24,7 +24,7 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
         'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius',
-        'box_blend_radius', 'approach_cone', 'apple_region')
+        'box_blend_radius', 'approach_cone', 'apple_region', 'apple_pass_speed')
 #: The world the plans keep clear of (collision.World).
 COLLISION = ('scene_file', 'avoid_collisions', 'collision_clearance')
 
@@ -82,6 +82,9 @@ _TEXT = {
     'approach_cone': ('when the requested approach to an apple is blocked or out of reach, other grasp axes are tried '
                       'this far from it (0: none)', 'rad', (0.0, 1.5708)),
     'apple_region': ('radius around an apple where touching is allowed (the apple and its stem)', 'm', (0.0, 0.5)),
+    'apple_pass_speed': ('in a harvest, the fastest a link may pass an apple still on the tree: a joint move passing '
+                         'one faster goes around those apples where a way is found (0: not looked at)', 'm/s',
+                         (0.0, 10.0)),
 }
 
 PARAMS = (
@@ -92,6 +95,10 @@ PARAMS = (
           'arm\'s base', 's', (0.0, 10.0)),
     Param('reference_timeout', 0.1, "plan from the controller's reference (joint_commands) while it is this fresh, "
           'else from joint_states', 's', (0.001, 10.0)),
+    Param('grasp_check', True, "claim a harvest's apple picked only when the gripper's measured opening shows that "
+          'it held something while it carried the apple (its fingers stopped short of their closed opening); else '
+          "the apple is missed, with why. false: claimed by the plan's clock (a gripper that reports no opening; "
+          'picking-stack sets it so when its simulator hangs no apples)'),
     Param('start_delay', 0.1, 'a plan starts this long after its planning is expected to end (stamped so), so that a '
           'moving arm never jumps', 's', (0.0, 10.0)),
     *(Param(name, _default(name), text, unit, rng) for name, (text, unit, rng) in _TEXT.items()),

@@ -65,6 +65,8 @@ class FruitSim:
         self._colours = {fate: ColorRGBA(r=r, g=g, b=b, a=1.0) for fate, (r, g, b) in COLOURS.items()}
         self._links = np.empty((0, 2, 3))         # the arm's capsules at the newest sample
         self.tree_scene = None                    # a tree's own scene (its branches), when it has one
+        self.stop_fingers = None                  # called with the opening the fingers stop at (m; 0: none)
+        self._finger_stop = 0.0
 
     @classmethod
     def from_parameters(cls, node, p, scene):
@@ -144,6 +146,10 @@ class FruitSim:
             events = self.world.observe(np.array(times), tools, openings, links, self.samples_of.radii,
                                         self.samples_of.names)
             self._links = links[-1]
+            stop = self.world.finger_stop()
+        if stop != self._finger_stop and self.stop_fingers is not None:
+            self._finger_stop = stop
+            self.stop_fingers(stop)
         for e in events:
             self._say(e)
 

@@ -121,6 +121,9 @@ class Servo:
         self._bridge = None                             # catching up: (the quintic to the command, steps, done)
         # Anti-windup: the integral never asks for more than the torque limit.
         self._integral_limit = self.max_torque / np.maximum(self.ki, 1e-12)
+        # Contact stops: a joint cannot go below its floor (fingers closing on an apple); -inf: none.
+        self.floor = np.full(n, -np.inf)
+        self._stops = False
 
     @property
     def n_joints(self):
@@ -171,6 +174,13 @@ class Servo:
             self.ref_q, self.ref_qd, self.ref_qdd = q.copy(), qd.copy(), qdd.copy()
         self._since_command = int(age / self.dt)      # counted from the command's own time
 
+    def stop_at(self, joint, position):
+        """Joint ``joint`` cannot move below ``position`` (a contact: the fingers on what they close on) until
+        it is set again; ``-inf`` frees it. Pressed against its stop the joint rests there and its integral
+        does not wind up."""
+        self.floor[joint] = float(position)
+        self._stops = bool(np.isfinite(self.floor).any())
+
     def step(self, steps=1):
         """Advance ``steps`` servo periods; between commands the reference moves on
         with its velocity and acceleration (so a late command does not stall it)."""
@@ -192,6 +202,12 @@ class Servo:
             self.qd += qdd * dt
             np.minimum(np.maximum(self.qd, lo_v, out=self.qd), hi_v, out=self.qd)
             self.q += self.qd * dt
+            if self._stops:
+                pressed = self.q < self.floor
+                if pressed.any():
+                    self.q[pressed] = self.floor[pressed]
+                    self.qd[pressed] = 0.0
+                    self.integral[pressed] = 0.0
             self._since_command += 1
             if self._bridge is not None:
                 self._bridge_step()

@@ -160,3 +160,23 @@ def test_a_servo_woken_late_waits_briefly_for_a_command_sent_during_its_stall():
     # None comes (the controller stalled too): the newest there is, after the wait.
     assert newest_since(lambda: old, 10.25, 0.005) is old
     assert newest_since(lambda: None, 10.25, 0.0) is None
+
+
+def test_a_joint_closing_on_a_stop_rests_there_and_moves_freely_once_it_is_lifted():
+    """Fingers closing on an apple: they stop at its width (not past it, not wound up), then open at once."""
+    servo = Servo([0.09], dt=1e-3, command_timeout=10.0)
+    servo.stop_at(0, 0.08)
+    servo.command([0.055])
+    servo.step(500)
+    assert servo.q[0] == pytest.approx(0.08) and servo.qd[0] == 0.0
+    servo.stop_at(0, -np.inf)
+    servo.command([0.09])
+    servo.step(500)
+    opened = servo.q[0]
+    free = Servo([0.08], dt=1e-3, command_timeout=10.0)
+    free.command([0.09])
+    free.step(500)
+    assert opened == pytest.approx(free.q[0], abs=1e-4)        # as fast as fingers that never pressed
+    servo.command([0.055])
+    servo.step(1000)
+    assert servo.q[0] == pytest.approx(0.055, abs=5e-4)       # closing freely on air

@@ -62,7 +62,10 @@ class GoalRunner:
         self.timing = timing or Timing()
         self.running = None              # Running: our newest plan the controller accepted
         self.harvests = {}               # goal key -> HarvestRun of the harvests sent and not ended, oldest first
+        self._places = {}                # goal key -> {apple index: (x, y, z)} of a harvest under way
         self.retargets = {'spliced': 0, 'replaced': 0}
+        #: Judge each harvested apple by the measured gripper (else it is claimed by the plan's clock).
+        self.grasp_check = True
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
@@ -284,6 +287,9 @@ class GoalRunner:
                     **({'retarget': goal.moved_by} if goal.moved_by else {}), **plan.extra)
 
     def _harvest_sent(self, goal, planned, flight):
+        # Where each apple of the goal is (a re-plan of its rest keeps the indices of the first).
+        self._places.setdefault(goal.key, {}).update(
+            (i, tuple(float(v) for v in T[:3, 3])) for i, T in zip(goal.target.indices, goal.target.poses))
         for run in self.harvests.values():           # the one it replaces keeps the apples in the box by then
             if flight.start is not None:
                 run.until = min(run.until, flight.start)
@@ -478,42 +484,61 @@ class GoalRunner:
 
     # -- harvests ---------------------------------------------------------------------------------
     def _harvest_progress(self):
-        """Each apple of a running harvest reported once it is in the box (by the controller's schedule)."""
+        """Each apple of a running harvest reported once it is in the box (by the controller's schedule), if the
+        fingers measured while they carried it held something."""
         now = self.schedule_now()
+        measured = self.port.measured()
         for key, run in self.harvests.items():
             if run.start is None:
                 continue
+            if self.grasp_check and measured is not None and measured[1] is not None:
+                run.watch(now, measured[1])
+            flight = self.lifecycle.flights.get(key)
             for k, apple in run.newly_picked(now):
-                self._apple_in_box(key, run, k, apple)
+                if flight is not None:
+                    self._apple_done(flight.goal, run, k, apple)
 
-    def _apple_in_box(self, key, run, k, apple):
-        flight = self.lifecycle.flights.get(key)
-        goal = flight.goal if flight is not None else None
-        if goal is not None:
-            self._apple(goal, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})', picked=k,
-                        started=apple.start, at=apple.end)
+    def _apple_done(self, goal, run, k, apple):
+        """Apple ``apple`` of ``run`` (the ``k``-th of its plan) through its release: picked, or missed when the
+        fingers were measured holding nothing while they should have carried it."""
+        held = run.holding(apple)
+        if held is False:
+            why = (f'the gripper held nothing while it should have carried it (its fingers closed to '
+                   f'{run.grip[apple.index] * 100:.1f} cm, the apple was not between them)')
+            run.miss(apple, why)
+            self._apple(goal, apple.index, 'missed', why, started=apple.start, at=apple.end)
+            return
+        unmeasured = '' if held else ' by the plan (the gripper\'s opening was not measured)'
+        self._apple(goal, apple.index, 'picked', f'in the box{unmeasured} ({k} of {len(run.plan.apples)})', picked=k,
+                    started=apple.start, at=apple.end, verified=held is True)
 
     def _apple(self, goal, index, word, words, **values):
-        state = {'picked': 'executing', 'skipped': 'planned'}.get(word, 'ended')
+        """A harvest's apple ``index`` picked, skipped or failed, with where the goal put it (``x``, ``y``, ``z``, m
+        in the arm's base: a client that did not send the poses, as for the apples seen, matches them by place)."""
+        state = {'picked': 'executing', 'missed': 'executing', 'skipped': 'planned'}.get(word, 'ended')
         stamp = {'stamp': goal.stamp} if goal.stamp else {}
+        place = self._places.get(goal.key, {}).get(index)
+        where = {} if place is None else dict(zip('xyz', place))
         self.port.status('OK' if word == 'picked' else 'WARN', f'harvest goal {goal.key}: apple {index} {word}: {words}',
-                         goal=goal.key, kind='harvest', state=state, apple=index, apple_state=word, **stamp, **values)
+                         goal=goal.key, kind='harvest', state=state, apple=index, apple_state=word, **stamp,
+                         **where, **values)
 
     def _harvest_ended(self, goal, outcome, ending):
         run = self.harvests.pop(goal.key, None)
         if run is None or run.start is None:
+            self._places.pop(goal.key, None)
             return {}
         now = self.schedule_now()
         finished = outcome == Outcome.SUCCEEDED
         if finished:
             for k, apple in run.newly_picked(math.inf):
-                self._apple(goal, apple.index, 'picked', f'in the box ({k} of {len(run.plan.apples)})', picked=k,
-                            started=apple.start, at=apple.end)
+                self._apple_done(goal, run, k, apple)
         else:
             apple = run.in_hand(now)
             if apple is not None:
                 self._apple(goal, apple.index, 'failed', f'the harvest {outcome.word} during its cycle: '
                                                          f'{ending.message}', started=apple.start)
+        self._places.pop(goal.key, None)
         values = run.summary(now, finished)
         return dict(values, summary=run.words(now, finished))
 
