@@ -8,6 +8,9 @@ tentative track. A track seen ``confirm_hits`` times is confirmed: a target. A t
 ``tentative_for`` s is dropped (a false positive seldom repeats), a confirmed one after ``forget_after`` s (the
 apple left the tree, or stays hidden).
 
+Each track also fits how its apple moves (:class:`~picking_core.sway.SwayFit`: a sway about where it hangs, from
+the detections' own stamps), so that :meth:`FruitMap.predict` says where it will be at a later time.
+
 Detections the map cannot use are counted with the reason: a frame with more than ``max_per_frame`` (a flood),
 a score below ``min_score``, a centre inside a branch.
 """
@@ -16,13 +19,14 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .harvest import SIDEWAYS
 from .kinematics.capsules import point_segment_distances
+from .sway import SwayFit
 
 
 @dataclass(frozen=True)
@@ -44,8 +48,8 @@ class MapSettings:
 
 @dataclass
 class Track:
-    """An apple seen: ``id``, its position estimate ``x`` (3,) and covariance ``P`` (3, 3) (base frame, m), its
-    diameter (m), ``hits``, when first and last seen (s)."""
+    """An apple seen: ``id``, its position estimate ``x`` (3,) and covariance ``P`` (3, 3) (base frame, m: where
+    it hangs), its diameter (m), ``hits``, when first and last seen (s), and ``motion``, how it moves."""
 
     id: int
     x: np.ndarray
@@ -55,6 +59,7 @@ class Track:
     first: float
     last: float
     confirmed: bool = False
+    motion: SwayFit = field(default_factory=SwayFit)
 
 
 class FruitMap:
@@ -115,6 +120,12 @@ class FruitMap:
         T[:, :3, 3] = np.array([k.x for k in targets]).reshape(-1, 3)
         return list(T)
 
+    def predict(self, track_id, t):
+        """``(mean (3,), covariance (3, 3))`` of where the apple of track ``track_id`` will be at ``t`` s (base frame,
+        m), from its motion; None for a track the map no longer holds."""
+        track = next((k for k in self.tracks if k.id == track_id), None)
+        return None if track is None else track.motion.predict(t)
+
     def counts(self):
         return {'frames': self.frames, 'detections': self.detections, 'tracks': len(self.tracks),
                 'confirmed': len(self.targets()), 'refused': sum(self.refused.values())}
@@ -147,6 +158,7 @@ class FruitMap:
         for i in free:
             self.tracks.append(Track(next(self._ids), z[i].copy(), R[i].copy(), float(diameters[i]), 1, t, t,
                                      s.confirm_hits <= 1))
+            self.tracks[-1].motion.update(t, z[i], R[i])
 
     def _refine(self, k, t, z, R, diameter):
         K = k.P @ np.linalg.inv(k.P + R + self.settings.sway ** 2 * np.eye(3))
@@ -154,6 +166,7 @@ class FruitMap:
         k.P = (np.eye(3) - K) @ k.P
         k.hits += 1
         k.last = t
+        k.motion.update(t, z, R)
         if np.isfinite(diameter):
             k.diameter = diameter if not np.isfinite(k.diameter) else k.diameter + (diameter - k.diameter) / k.hits
         k.confirmed = k.confirmed or k.hits >= self.settings.confirm_hits
