@@ -1,5 +1,8 @@
 """The Fast DDS profile the processes start with, and when it is left out."""
 
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 from picking_common.middleware import PROFILE, use_fast_discovery
@@ -26,3 +29,22 @@ def test_the_profile_is_the_default_participant_announcing_every_fifth_of_a_seco
     assert participant.get('is_default_profile') == 'true'
     period = participant.find(f'{NS}rtps/{NS}builtin/{NS}discovery_config/{NS}leaseAnnouncement')
     assert int(period.find(f'{NS}sec').text) + int(period.find(f'{NS}nanosec').text) * 1e-9 == 0.2
+
+
+def test_reliable_writers_heartbeat_every_tenth_of_a_second():
+    writer = ET.parse(PROFILE).getroot().find(f'{NS}data_writer')
+    assert writer.get('is_default_profile') == 'true'
+    period = writer.find(f'{NS}times/{NS}heartbeatPeriod')
+    assert int(period.find(f'{NS}sec').text) + int(period.find(f'{NS}nanosec').text) * 1e-9 == 0.1
+
+
+def test_fast_dds_reads_the_profile_without_an_error():
+    """Fast DDS skips what it cannot parse with only a line on stderr: a process that creates a participant and a
+    writer with the profile prints none."""
+    code = ('import rclpy; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node("profile_check"); '
+            'n.create_publisher(String, "profile_check", 10).publish(String()); n.destroy_node(); rclpy.shutdown()')
+    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp',
+           'FASTRTPS_DEFAULT_PROFILES_FILE': str(PROFILE)}
+    env.pop('FASTDDS_DEFAULT_PROFILES_FILE', None)
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and 'XMLPARSER' not in done.stderr and 'Error' not in done.stderr, done.stderr
