@@ -236,6 +236,8 @@ class _Draft:
     q_apple: np.ndarray = None
     q_top: np.ndarray = None
     q_box: np.ndarray = None
+    flying: tuple = None
+    approach_time: float = None
     parts: list = field(default_factory=list)
     cart: list = field(default_factory=list)
 
@@ -270,7 +272,8 @@ class PickCycle:
         P4[2, 3] += s.box_drop_height
         return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
 
-    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True, neighbours=None):
+    def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True, neighbours=None,
+             approach_time=None):
         """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
 
         A harvest chains cycles (:mod:`picking_core.harvest`): ``from_box`` starts at rest in the
@@ -284,12 +287,16 @@ class PickCycle:
         point that cannot be reached, or :class:`~picking_core.approaches.Blocked` naming the
         obstacle. With a checker, ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`: the
         other apples on the tree) are passed slowly: a joint move that would pass one fast goes around them.
+        ``approach_time`` s: the least the move to P1 may last (a pick timed to close on a moving apple when it
+        gets there, :mod:`picking_core.moving_pick`; a detour is not stretched).
         """
         return approaches.clear_cycle(
             self, lambda T, detours=None, branch=None, slow=None: self._plan(
-                start, T, gripper_start, from_box, home_after, detours, branch, slow), T_apple, neighbours)
+                start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time),
+            T_apple, neighbours)
 
-    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None):
+    def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None,
+              approach_time=None):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
@@ -301,7 +308,11 @@ class PickCycle:
                              'entered and left at speed)')
         d = self._knots(T_apple, branch, detours or {})
         d.slow = dict(slow or {})
-        rise_line = self._leave_start(d, start, from_box)
+        d.approach_time = approach_time
+        if not from_box and self._flies_on(start):
+            d.flying, rise_line = tuple(self.planner.check_start(start)), None
+        else:
+            rise_line = self._leave_start(d, start, from_box)
         self._reach_apple(d, rise_line)
         d.add('grasp', 'dwell', trajectory.hold(d.q_apple, self._gripper_time(self.s.grasp_time)))
         self._carry_to_box(d)
@@ -350,6 +361,14 @@ class PickCycle:
             return None
         return (traj.end_state() if at_end else traj.start_state())[1:]
 
+    def _flies_on(self, start):
+        """Whether the approach leaves ``start`` as it moves (a jerk-limited move from any state), not after a brake
+        to rest and the way home: a pick whose target moved while the arm approached it carries on towards it."""
+        if self.s.approach_method != 'optimal':
+            return False
+        _, qd, qdd = self.planner.check_start(start)
+        return bool(np.abs(qd).max() >= 1e-4 or np.abs(qdd).max() >= 1e-3)
+
     def _leave_start(self, d, start, from_box):
         """From the start: brake to rest and go home (P0), or, from the box, the line out of it (returned as a
         function of its speed at the top, planned with the approach that follows it)."""
@@ -370,13 +389,18 @@ class PickCycle:
         """Home (or the end of the ``rise`` out of the box) -> the start of the line to the apple (P1), arriving
         as fast as the line starts."""
         vf, af = self._blend_state(line, False) or (None, None)
-        q0 = d.home if rise is None else rise.end_state()[0]
-        v0, a0 = (None, None) if rise is None else (self._blend_state(rise, True) or (None, None))
+        if rise is None and d.flying is not None:
+            q0, v0, a0 = d.flying
+        else:
+            q0 = d.home if rise is None else rise.end_state()[0]
+            v0, a0 = (None, None) if rise is None else (self._blend_state(rise, True) or (None, None))
         mover = self._mover(d, 'P1 approach')
         if 'P1 approach' in d.detours:
             return self._detour([q0, *d.detours['P1 approach'], line.start_state()[0]],
                                 None if v0 is None else (v0, a0), None if vf is None else (vf, af), mover)
-        return mover.joint_move(q0, line.start_state()[0], self.s.approach_method, v0=v0, a0=a0, vf=vf, af=af)
+        least = d.approach_time if self.s.approach_method == 'optimal' else None
+        return mover.joint_move(q0, line.start_state()[0], self.s.approach_method, duration=least, v0=v0, a0=a0,
+                                vf=vf, af=af)
 
     def _reach_apple(self, d, rise_line):
         """P1 approach and P2, the straight line to the apple (after the line out of the box, from the box)."""
@@ -620,7 +644,7 @@ class PickCycle:
             elif seg.label == 'release':
                 g = s.gripper_open
                 events['release_start'], events['release_end'] = seg.start, seg.start + seg.duration
-            elif seg.label in ('brake', 'P0 home') and seg.duration >= self._gripper_time(0.0):
+            elif seg.label in ('brake', 'P0 home', 'P1 approach') and seg.duration >= self._gripper_time(0.0):
                 g = s.gripper_open
             ends.append((start, g, seg.duration))
         g0, g1, durations = np.array(ends).T
