@@ -1,0 +1,110 @@
+"""A pick of a moving apple (pure core): the grasp aimed where the apple will be when the fingers reach it.
+
+A swaying apple is not where the camera last saw it: the camera's latency, the planning and the arm's approach put
+the fingers' closing a second or more after the newest detection. :func:`aim` plans the pick cycle to the place the
+apple's motion (:class:`~picking_core.sway.SwayFit`) predicts for the instant the planned fingers close to the
+apple's width.
+
+Planned again at each new detection (re-targets, spliced at the controller), the pick keeps its closing instant: the
+move to P1 is stretched to arrive when the last plan said (Ruckig's least duration), and only the place is refined
+as the prediction's horizon shrinks. Aiming each plan at the quickest closing instead chases the apple: every new
+plan from a moving arm to a moved P1 takes a few tenths of a second again, so the closing never comes nearer. When
+the arm cannot make the instant within ``SLIP`` (near P1, or the apple swung far), the running plan is kept: the aim
+holds, as it does once the final straight approach has begun (a new plan would have to back out of it).
+
+:func:`closing_margin` is the closing rule's measure: how far inside the fingers' capture region the predicted
+centre stays at that instant, three standard deviations of the prediction taken off.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .fruit import Gripper
+
+#: s: the closing instant is found to this step.
+STEP = 1e-3
+#: s: aim and plan agree when the plan's closing instant moves less than this between two rounds.
+AGREE = 2e-3
+#: Rounds of aiming at most (each plans the cycle once or twice).
+ROUNDS = 4
+#: s: the most a new plan may put the closing off (near P1 a new plan from the moving arm needs a slower line:
+#: tenths of a second later, and the pursuit would never end).
+SLIP = 0.02
+
+
+def closing_time(plan, width):
+    """s into ``plan`` (a pick cycle's, the gripper's opening its last joint) when the fingers have closed to
+    ``width`` m: the instant they meet an apple that wide (its grasp's end if they never close that far)."""
+    start, end = plan.extra['grasp_start'], plan.extra['grasp_end']
+    t = np.arange(start, end + STEP, STEP)
+    opening = plan.trajectory.sample(np.minimum(t, plan.duration))[0][:, -1]
+    met = np.flatnonzero(opening <= width)
+    return float(t[met[0]]) if len(met) else float(end)
+
+
+@dataclass(frozen=True)
+class Aim:
+    """A pick aimed at a moving apple: its ``plan``, the grasp pose ``T`` it was planned to (4x4), ``at`` the plan's
+    closing instant (s into it), and the prediction for that instant: ``mean`` (3,) and ``cov`` (3, 3), m (``mean``
+    differs from ``T``'s place by what the last round of aiming left)."""
+
+    plan: object
+    T: np.ndarray
+    at: float
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+def aim(plan_to, predict, rotation, width, at=None, slip=SLIP):
+    """The pick of an apple ``width`` m wide aimed where it will be: ``plan_to(T, approach_time)`` plans the cycle to
+    grasp pose ``T`` with the move to P1 lasting at least ``approach_time`` s (None: as quick as it can);
+    ``predict(s)`` is ``(mean, cov)`` of the apple's centre ``s`` s into the plan; ``rotation`` (3, 3) the grasp's;
+    ``at`` s into the plan, the closing instant to keep (the last aim's; None: the soonest). None when no plan
+    closes within ``slip`` s after ``at`` (the aim holds: the running plan is kept). Raises what ``plan_to``
+    raises."""
+    soonest = at is None
+    if soonest:
+        at = closing_time(plan_to(_pose(rotation, predict(0.0)[0]), None), width)
+    for _ in range(ROUNDS):
+        T = _pose(rotation, predict(at)[0])
+        plan = plan_to(T, None)
+        closes = closing_time(plan, width)
+        if closes < at - AGREE:                     # early: the move to P1 stretched to close on time
+            plan = plan_to(T, _segment(plan, 'P1 approach').duration + at - closes)
+            closes = closing_time(plan, width)
+        if closes <= at + AGREE:
+            break
+        if not soonest and closes > at + slip:
+            return None
+        at = closes                                 # a little late: aimed again at that instant
+    mean, cov = predict(closes)                     # where the apple will be when these fingers close
+    return Aim(plan, T, closes, np.asarray(mean, float), np.asarray(cov, float))
+
+
+def final_approach(plan):
+    """s into a pick cycle's ``plan`` where its straight line to the apple begins (its grasp's start without one)."""
+    return next((s.start for s in plan.segments if s.label == 'P2 to the apple'), plan.extra.get('grasp_start', np.inf))
+
+
+def _segment(plan, label):
+    return next(s for s in plan.segments if s.label == label)
+
+
+def _pose(rotation, p):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = rotation, p
+    return T
+
+
+def closing_margin(a, gripper=Gripper(), sigmas=3.0):
+    """m: how far inside ``gripper``'s capture region (tool frame) the predicted centre of aim ``a`` lies at its
+    closing instant, less ``sigmas`` standard deviations of the prediction along each axis; the least over the
+    axes (negative: the fingers may close beside the apple)."""
+    R = a.T[:3, :3]
+    local = R.T @ (a.mean - a.T[:3, 3])
+    sd = np.sqrt(np.maximum(np.diag(R.T @ a.cov @ R), 0.0))
+    half = np.array([gripper.centred, gripper.across, gripper.along])
+    return float(np.min(half - np.abs(local) - sigmas * sd))
