@@ -11,7 +11,7 @@ from picking_core.collision.scene import Scene, rod
 from picking_core.goals.lifecycle import ANSWER_GRACE, LATE_REPLANS, OLD_HEADER_TIMESTAMP, RESULT_RETRY
 from picking_core.goals.planning import GoalPlanner
 from picking_core.goals.requests import Goal, Kind, Target
-from picking_core.goals.runner import GoalRunner
+from picking_core.goals.runner import STREAM_PAUSE, GoalRunner
 from picking_core.goals.start import Running, Timing, choose_start
 from picking_core.harvest import SIDEWAYS
 from picking_core.kinematics import pose_matrix
@@ -240,9 +240,49 @@ def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planne
     runner.on_result(first, 'aborted', -1, 'preempted')              # an older plan's end ends nothing
     runner.on_response(newest, True, handle=object())
     runner.on_result(newest, 'succeeded', 0, '')
+    assert 'succeeded' not in port.states('g')                      # at rest at its target, open for the stream
+    port.t_wall += STREAM_PAUSE
+    runner.tick()
     assert port.states('g').count('succeeded') == 1 and 'aborted' not in port.states('g')
     end = port.statuses[-1]
     assert [end[f'retargets_{k}'] for k in ('received', 'spliced', 'replaced', 'refused')] == [6, 5, 1, 0]
+
+
+def test_a_retargeted_goal_at_rest_waits_for_its_stream_then_ends(port):
+    """A stream of re-targets that pauses (the arm reaches the last target meanwhile) moves the same goal on when
+    it resumes within STREAM_PAUSE; after a longer pause the goal ends succeeded; a new goal or a cancel ends it at
+    once."""
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    accept(runner, port)
+    assert runner.retarget(pose_matrix([0.6, 0.12, 0.4], DOWN), port.wall()) is None
+    moved = accept(runner, port)
+    runner.on_result(moved, 'succeeded', 0, '')
+    port.t_wall += 0.9 * STREAM_PAUSE
+    runner.tick()
+    assert 'succeeded' not in port.states('g')
+    assert runner.retarget(pose_matrix([0.6, 0.14, 0.4], DOWN), port.wall()) is None   # the stream resumes
+    again = accept(runner, port)
+    assert again.goal.key == 'g' and again.goal.retargets == 2
+    runner.on_result(again, 'succeeded', 0, '')
+    port.t_wall += STREAM_PAUSE
+    runner.tick()
+    assert port.states('g').count('succeeded') == 1
+    assert port.statuses[-1]['retargets_received'] == 2
+    assert runner.retarget(np.eye(4), port.wall()) == 'no pose or pick goal runs to move'
+    # A new goal ends a goal at rest at once; so does a cancel.
+    for stop in ('new goal', 'cancel'):
+        key = f'h{stop[0]}'
+        runner.take(pose_goal(key, [0.6, 0.1, 0.4]))
+        accept(runner, port)
+        runner.retarget(pose_matrix([0.6, 0.12, 0.4], DOWN), port.wall())
+        runner.on_result(accept(runner, port), 'succeeded', 0, '')
+        if stop == 'cancel':
+            assert runner.cancel(key) and port.states(key)[-1] == 'canceled'
+        else:
+            runner.take(pose_goal('other', [0.6, 0.0, 0.4]))
+            assert port.states(key)[-1] == 'succeeded'
+            runner.on_result(accept(runner, port), 'succeeded', 0, '')
 
 
 def test_without_a_running_goal_a_retarget_is_not_taken(port):

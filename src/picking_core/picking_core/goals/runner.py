@@ -25,6 +25,7 @@ import numpy as np
 from ..collision import STEP as COLLISION_STEP
 from ..harvest import HarvestRun
 from ..kinematics.paths import check_joint_limits
+from ..moving_pick import final_approach
 from ..trajectory import waypoints
 from .intake import WAIT_LIMIT, GoalBook, Waiting
 from .lifecycle import LATE_REPLANS, Ending, Flight, Lifecycle, Outcome, State
@@ -33,6 +34,9 @@ from .start import Running, Start, Timing, choose_start
 
 #: s between the samples a plan's peak velocity and acceleration are read at (whatever its points' spacing).
 PEAK_SAMPLING = 0.01
+#: s a re-targeted pose goal stays open after the arm came to rest at its last target: a stream of re-targets that
+#: pauses (a camera's dropout, a sender starved of CPU) moves the same goal on when it resumes.
+STREAM_PAUSE = 1.0
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -67,6 +71,7 @@ class GoalRunner:
         #: Judge each harvested apple by the measured gripper (else it is claimed by the plan's clock).
         self.grasp_check = True
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
+        self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -74,6 +79,7 @@ class GoalRunner:
     def take(self, goal, content=None):
         """A new goal; ``content`` (compared with ==) tells the same goal sent again, answered again and not
         planned twice (None: never a resend)."""
+        self._end_paused()
         if content is not None:
             repeat, answer = self.book.repeat(goal.key, content, goal.came)
             if repeat:
@@ -92,14 +98,15 @@ class GoalRunner:
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
         the same goal; a newer re-target arriving while this one waits replaces it; ``stamp`` names the re-target (its
         message's stamp, in the statuses). Returns None, or why the re-target was not taken (no such goal; a pick
-        whose gripper has closed)."""
+        whose final straight approach has begun: a new plan would back out of it)."""
         goal = self._retargetable()
         if goal is None:
             return 'no pose or pick goal runs to move'
+        self._paused.pop(goal.key, None)
         flight = self.lifecycle.flights.get(goal.key)
         if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
-                flight.elapsed >= flight.planned.plan.extra.get('grasp_start', math.inf):
-            return 'the gripper has closed on the apple: its target no longer moves'
+                flight.elapsed >= final_approach(flight.planned.plan):
+            return 'the final straight approach to the apple has begun: its target no longer moves'
         self._moved(goal.key, 'received')
         self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1,
                                 moved_by=stamp))
@@ -123,7 +130,9 @@ class GoalRunner:
         if waiting is not None and waiting.kind in (Kind.POSE, Kind.PICK):
             return waiting
         flights = [f for f in self.lifecycle.flights.values() if f.goal.kind in (Kind.POSE, Kind.PICK) and not f.cancel]
-        return max(flights, key=lambda f: f.sent).goal if flights else None
+        if flights:
+            return max(flights, key=lambda f: f.sent).goal
+        return next(reversed(self._paused.values()))[0] if self._paused else None
 
     def cancel(self, key):
         """Cancel goal ``key``: at the controller when its plan went out (the arm brakes to rest), at once when it
@@ -137,11 +146,16 @@ class GoalRunner:
         if self.waiting.goal is not None and self.waiting.goal.key == key:
             self.end(self.waiting.take(), Ending(Outcome.CANCELED, 'canceled before it was planned'))
             return True
+        if key in self._paused:
+            goal, _, duration, _ = self._paused.pop(key)
+            self.end(goal, Ending(Outcome.CANCELED, 'canceled at rest at its last target'), duration)
+            return True
         return False
 
     def cancel_all(self):
         """Cancel every goal under way; returns how many."""
-        keys = list(self.lifecycle.flights) + ([self.waiting.goal.key] if self.waiting.goal is not None else [])
+        keys = list(self.lifecycle.flights) + ([self.waiting.goal.key] if self.waiting.goal is not None else []) + \
+            list(self._paused)
         return sum(self.cancel(k) for k in keys)
 
     def blocked(self):
@@ -163,8 +177,10 @@ class GoalRunner:
             self.end(old, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited'))
 
     def tick(self):
-        """A tenth of a second: the waiting goal, overdue answers, a running harvest's apples."""
+        """A tenth of a second: the waiting goal, overdue answers, a running harvest's apples, re-targeted goals
+        at rest whose stream has paused long enough."""
         self._serve_waiting()
+        self._end_paused(self.port.wall())
         for flight in self.lifecycle.results_to_ask(self.port.wall(), self.schedule_now()):
             self.port.ask_result(flight)
         for flight, ending in self.lifecycle.overdue(self.port.wall(), self.schedule_now()):
@@ -359,8 +375,17 @@ class GoalRunner:
             return
         if ending.late:
             self._late(flight, ending)
+        elif ending.outcome == Outcome.SUCCEEDED and flight.goal.kind == Kind.POSE and flight.goal.retargets:
+            self._paused[flight.goal.key] = (flight.goal, ending, flight.duration, self.port.wall() + STREAM_PAUSE)
         else:
             self.end(flight.goal, ending, flight.duration)
+
+    def _end_paused(self, now=math.inf):
+        """End the re-targeted goals at rest whose stream has paused until ``now`` (all: a new goal came)."""
+        for key, (goal, ending, duration, until) in list(self._paused.items()):
+            if now >= until:
+                del self._paused[key]
+                self.end(goal, ending, duration)
 
     def _late(self, flight, ending):
         """``flight``'s plan reached the controller too late to run as planned, or was not answered by its start:
@@ -566,3 +591,4 @@ class _Rest:
 
 
 __all__ = ['GoalRunner', 'Port', 'State']
+
