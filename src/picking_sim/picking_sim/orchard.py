@@ -78,9 +78,11 @@ def fruit_world(centres, scene, seed=0, wind=Wind(), t0=0.0):
 
 #: The gripper as the world judges its touches (tool frame, m; the URDF's visual geometry): two fingers 2 cm
 #: thick reaching 6 cm back from the grasp point along z, on either side of it along x at the opening, and the
-#: wrist body behind them. (The URDF's collision capsules bound fingers and apple coarsely, for planning.)
+#: wrist body behind them, its round front 5 cm behind the grasp point where the URDF's cylinder ends (an apple
+#: held at the grasp point does not touch it). (The URDF's collision capsules bound fingers and apple coarsely,
+#: for planning.)
 FINGER_RADIUS, FINGER_LENGTH = 0.01, 0.06
-WRIST = (np.array([0.0, 0.0, -0.15]), np.array([0.0, 0.0, -0.06]), 0.035)
+WRIST = (np.array([0.0, 0.0, -0.15]), np.array([0.0, 0.0, -0.085]), 0.035)
 
 
 class ArmSamples:
