@@ -18,6 +18,7 @@ centre stays at that instant, three standard deviations of the prediction taken 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,23 @@ ROUNDS = 4
 #: s: the most a new plan may put the closing off (near P1 a new plan from the moving arm needs a slower line:
 #: tenths of a second later, and the pursuit would never end).
 SLIP = 0.02
+#: m: the width a pick's fingers are timed to meet when the apple's own is not known (a typical apple's).
+APPLE_WIDTH = 0.07
+
+
+class AimHolds(ValueError):
+    """No new plan closes on time: the running plan keeps its aim."""
+
+
+@dataclass(frozen=True)
+class Follow:
+    """A pick's apple in motion: ``predict(t)`` is ``(mean, cov)`` of its centre at time ``t``; ``width``
+    m; ``closes_at`` when the pick's last plan closes the fingers (None before one); times on the clock the apple's
+    places are stamped with (the ROS clock), s."""
+
+    predict: Callable
+    width: float = APPLE_WIDTH
+    closes_at: float | None = None
 
 
 def closing_time(plan, width):

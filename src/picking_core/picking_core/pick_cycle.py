@@ -309,11 +309,18 @@ class PickCycle:
         d = self._knots(T_apple, branch, detours or {})
         d.slow = dict(slow or {})
         d.approach_time = approach_time
+        rise_line = None
         if not from_box and self._flies_on(start):
-            d.flying, rise_line = tuple(self.planner.check_start(start)), None
-        else:
+            d.flying = start
+            try:
+                self._reach_apple(d, None)
+            except Unreachable:
+                # (The move from the moving arm would cross a limit: it brakes and goes home first, as before.)
+                d = self._knots(T_apple, branch, detours or {})
+                d.slow, d.approach_time = dict(slow or {}), approach_time
+        if d.flying is None:
             rise_line = self._leave_start(d, start, from_box)
-        self._reach_apple(d, rise_line)
+            self._reach_apple(d, rise_line)
         d.add('grasp', 'dwell', trajectory.hold(d.q_apple, self._gripper_time(self.s.grasp_time)))
         self._carry_to_box(d)
         d.add('release', 'dwell', trajectory.hold(d.q_box, self._gripper_time(self.s.release_time)))

@@ -36,6 +36,9 @@ class Port:
     def now(self):
         return self.t
 
+    def seconds(self, ns):
+        return ns * 1e-9
+
     def ready(self):
         return self.why
 
@@ -384,3 +387,44 @@ def test_an_apple_the_fingers_were_measured_holding_is_picked_and_one_they_close
     assert final['state'] == 'succeeded' and final['picked'] == 1 and final['missed'] == 1
     assert final['picked_apples'] == str(plan.apples[0].index) and final['missed_apples'] == str(plan.apples[1].index)
     assert '1 missed' in final['text']
+
+
+def _swaying(t):
+    """A pick's apple swaying ±30 mm at 1 Hz across the approach (along y)."""
+    return np.array([0.70, 0.15 + 0.03 * np.sin(2 * np.pi * t), 0.65])
+
+
+def _pick_at(key, t, came=0.0):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_euler('xyz', SIDEWAYS).as_matrix(), _swaying(t)
+    return Goal(Kind.PICK, key, Target(Kind.PICK, (T,)), came, stamp=f'{t:.9f}')
+
+
+def test_a_pick_whose_apple_streams_in_on_the_topic_is_aimed_where_it_will_be_at_closing(port):
+    """Picks of the same apple sent on the topic at 30 Hz (its places, stamped) move the first pick on; once its
+    places show a sway, each plan closes the fingers where the apple will be then; near P1 a re-plan that would put
+    the closing off is not taken (held) and the running plan keeps its aim."""
+    runner = GoalRunner(port)
+    first = _pick_at('p', port.t)
+    runner.take(first)
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    for k in range(1, 31):
+        port.t += 1 / 30
+        port.t_wall += 1 / 30
+        runner.take(_pick_at(f'q{k}', port.t, came=port.t_wall))
+        if port.sent[-1][0] is not flight:
+            flight = accept(runner, port)
+        runner.on_feedback(flight, port.t, port.t - flight.start if flight.start else 0.0, 0.0)
+    assert all(s == 'superseded' for k in range(1, 31) for s in port.states(f'q{k}'))
+    assert 'taken as its new target' in [s for s in port.statuses if s.get('goal') == 'q30'][-1]['text']
+    aimed = [f for f, _, _ in port.sent if 'closes_in' in f.planned.plan.extra]
+    assert aimed and all(f.goal.key == 'p' for f, _, _ in port.sent)
+    last = aimed[-1]
+    plan, closes = last.planned.plan, last.start + last.planned.plan.extra['closes_in']
+    arm = port.planner.planner.arm
+    q = plan.trajectory.sample([closes - last.start])[0][0]
+    tool = arm.fk(q[:arm.dof])[:3, 3]
+    assert np.linalg.norm(tool - _swaying(closes)) < 0.004              # where the apple will be then
+    counts = runner._moves['p']
+    assert counts['received'] == 30 and counts['spliced'] + counts['replaced'] + counts['held'] == 30, counts

@@ -11,6 +11,7 @@ from ..approaches import Blocked
 from ..collision import STEP as COLLISION_STEP
 from ..collision import Allowed
 from ..harvest import Harvest, HarvestPlan
+from ..moving_pick import AimHolds, aim
 from ..pick_cycle import PickCycle
 from ..planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS, Plan
 from .requests import Kind
@@ -37,9 +38,10 @@ class GoalPlanner:
         """ValueError when ``target`` names a method this planner does not know (before any planning)."""
         self._planner_for(target)
 
-    def plan(self, target, start):
-        """The :class:`Planned` of ``target`` from ``start`` (a :class:`~.start.Start`); raises ValueError (or
-        Unreachable, Blocked) with the reason."""
+    def plan(self, target, start, at=0.0):
+        """The :class:`Planned` of ``target`` from ``start`` (a :class:`~.start.Start`; ``at`` the schedule time
+        it is expected to start at on the ROS clock, for a pick of a moving apple); raises ValueError (or Unreachable, Blocked, or
+        :class:`~picking_core.moving_pick.AimHolds`) with the reason."""
         checker = self.world.checker
         if target.kind == Kind.POSE:
             planned = Planned(around.plan_pose(self._planner_for(target), checker, start.state, target.pose,
@@ -47,6 +49,8 @@ class GoalPlanner:
         elif target.kind == Kind.PATH:
             planned = Planned(around.plan_path(self._planner_for(target), checker, start.state, list(target.poses),
                                                target.method or None))
+        elif target.kind == Kind.PICK and target.follow is not None:
+            planned = Planned(self._aimed(self._cycle(checker), target, start, at))
         elif target.kind == Kind.PICK:
             planned = Planned(self._cycle(checker).plan(start.state, target.pose, gripper_start=start.gripper))
         else:
@@ -62,6 +66,21 @@ class GoalPlanner:
             if contact is not None:
                 raise Blocked(f'the plan would hit an obstacle: {contact}')
         return planned
+
+    @staticmethod
+    def _aimed(cycle, target, start, t0):
+        """A pick's plan aimed where its moving apple will be when the fingers close (:mod:`~picking_core.moving_pick`),
+        keeping the closing instant of its last plan; ``t0`` the ROS time the plan starts."""
+        follow = target.follow
+
+        def plan_to(T, least):
+            return cycle.plan(start.state, T, gripper_start=start.gripper, approach_time=least)
+        at = None if follow.closes_at is None else follow.closes_at - t0
+        aimed = aim(plan_to, lambda s: follow.predict(t0 + s), target.pose[:3, :3], follow.width, at)
+        if aimed is None:
+            raise AimHolds('no new plan closes the fingers on time: the running plan keeps its aim')
+        aimed.plan.extra['closes_in'] = aimed.at
+        return aimed.plan
 
     def _cycle(self, checker):
         return PickCycle(self.planner, self.pick, checker)

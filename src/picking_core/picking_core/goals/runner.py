@@ -25,9 +25,10 @@ import numpy as np
 from ..collision import STEP as COLLISION_STEP
 from ..harvest import HarvestRun
 from ..kinematics.paths import check_joint_limits
-from ..moving_pick import final_approach
+from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
+from ..sway import SwayFit
 from ..trajectory import waypoints
-from .intake import WAIT_LIMIT, GoalBook, Waiting
+from .intake import WAIT_LIMIT, ZERO_KEY, GoalBook, Waiting
 from .lifecycle import LATE_REPLANS, Ending, Flight, Lifecycle, Outcome, State
 from .requests import Kind, Rest, Target
 from .start import Running, Start, Timing, choose_start
@@ -37,6 +38,11 @@ PEAK_SAMPLING = 0.01
 #: s a re-targeted pose goal stays open after the arm came to rest at its last target: a stream of re-targets that
 #: pauses (a camera's dropout, a sender starved of CPU) moves the same goal on when it resumes.
 STREAM_PAUSE = 1.0
+#: m: a pick sent on the topic this near the running pick's target names the same apple (a stream of its places):
+#: it moves that pick on, as a re-target.
+SAME_APPLE = 0.05
+#: m: the noise a stream of a pick's places is taken to have when its motion is fitted (a camera's).
+STREAM_NOISE = 0.003
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -45,6 +51,7 @@ class Port(Protocol):
 
     def wall(self) -> float: ...                 # time.monotonic()
     def now(self) -> float: ...                  # the controller's clock (ROS time)
+    def seconds(self, ns) -> float: ...          # a ROS time in ns on that clock
     def ready(self) -> str | None: ...           # why no goal can be planned now (no joint_states, no controller)
     def reference(self): ...                     # ((q, qd, qdd), gripper) the controller commands now, or None
     def measured(self): ...                      # (q, gripper) of the newest joint_states, or None
@@ -72,6 +79,9 @@ class GoalRunner:
         self.grasp_check = True
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
+        self._sway = {}                  # pick goal key -> SwayFit of its target's stamped places
+        self._seen = {}                  # pick goal key -> its apple's latest place (m), taken or not
+        self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -92,7 +102,53 @@ class GoalRunner:
         except ValueError as exc:
             self.end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
+        if goal.kind == Kind.PICK and self._same_apple(goal):
+            return
+        if goal.kind == Kind.PICK:
+            self._sway[goal.key] = SwayFit()
+            self._place(goal.key, goal.target.pose, goal.stamp)
         self._handle(goal)
+
+    def _same_apple(self, goal):
+        """A pick sent on the topic near the running topic pick's target moves that pick on (True: answered here)."""
+        running = self._retargetable()
+        if goal.feedback is not None or running is None or running.kind != Kind.PICK or running.feedback is not None \
+                or not self._near_apple(running, goal.target.pose[:3, 3], goal.stamp):
+            return False
+        why = self.retarget(goal.target.pose, goal.came, goal.stamp)
+        taken = 'taken as its new target' if why is None else f'not moved: {why}'
+        self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key}: {taken}'))
+        return True
+
+    def _near_apple(self, running, p, stamp):
+        """Whether ``p`` seen at ``stamp`` is the apple of pick ``running``: within SAME_APPLE of its latest place, or of
+        where its sway puts it then (a stream that stalled finds it farther on)."""
+        places = [self._seen.get(running.key, running.target.pose[:3, 3])]
+        fit = self._sway.get(running.key)
+        predicted = fit.predict(self._stamp_time(stamp)) if fit is not None else None
+        if predicted is not None:
+            places.append(predicted[0])
+        return min(np.linalg.norm(np.asarray(q) - p) for q in places) <= SAME_APPLE
+
+    def _stamp_time(self, stamp):
+        """A goal's stamp (text) on the schedule clock; now for none."""
+        if not stamp or stamp == ZERO_KEY:
+            return self.port.now()
+        sec, nsec = stamp.split('.')
+        return self.port.seconds(int(sec) * 1_000_000_000 + int(nsec))
+
+    def _place(self, key, pose, stamp):
+        """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted; returns
+        the Follow that aims the pick where the apple will be, or None while it does not sway."""
+        fit = self._sway.get(key)
+        if fit is None:
+            return None
+        self._seen[key] = np.asarray(pose, float)[:3, 3]
+        fit.update(self._stamp_time(stamp), self._seen[key], np.eye(3) * STREAM_NOISE ** 2)
+        motion = fit.fit()
+        if motion is None or motion.frequency <= 0.0:
+            return None
+        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key))
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
@@ -103,17 +159,21 @@ class GoalRunner:
         if goal is None:
             return 'no pose or pick goal runs to move'
         self._paused.pop(goal.key, None)
+        follow = self._place(goal.key, pose, stamp) if goal.kind == Kind.PICK else None
         flight = self.lifecycle.flights.get(goal.key)
         if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
                 flight.elapsed >= final_approach(flight.planned.plan):
             return 'the final straight approach to the apple has begun: its target no longer moves'
         self._moved(goal.key, 'received')
-        self._handle(goal.again(target=goal.target.moved_to(pose), came=wall, attempt=0, retargets=goal.retargets + 1,
+        target = goal.target.moved_to(pose)
+        if goal.kind == Kind.PICK:
+            target = replace(target, follow=follow)
+        self._handle(goal.again(target=target, came=wall, attempt=0, retargets=goal.retargets + 1,
                                 moved_by=stamp))
         return None
 
     def _moved(self, key, what):
-        counts = self._moves.setdefault(key, dict.fromkeys(('received', 'spliced', 'replaced', 'refused'), 0))
+        counts = self._moves.setdefault(key, dict.fromkeys(('received', 'spliced', 'replaced', 'refused', 'held'), 0))
         counts[what] += 1
         if what in ('spliced', 'replaced'):
             self.retargets[what] += 1
@@ -214,9 +274,12 @@ class GoalRunner:
         t0 = time.perf_counter()
         try:
             planner = self.port.goal_planner()
-            start, planned = self._plan(goal, planner)
+            start, planned, planned_at = self._plan(goal, planner)
             names = tuple(planned.plan.joint_names or planner.planner.arm.joint_names)
             points = self._points(planner, planned, start, names)
+        except AimHolds:
+            self._moved(goal.key, 'held')             # a moving apple's pick keeps the plan it runs
+            return
         except ValueError as exc:
             self.refuse(goal, str(exc))
             return
@@ -231,14 +294,17 @@ class GoalRunner:
         if goal.kind == Kind.HARVEST:
             self._harvest_sent(goal, planned, flight)
         self.port.send(flight, points, start.time)
+        if 'closes_in' in planned.plan.extra:
+            self._closes[goal.key] = planned_at + planned.plan.extra['closes_in']
         # (A stream of re-targets is said on planner_status: the log says each goal's first plan.)
         self.port.log('DEBUG' if goal.retargets else 'INFO',
                       f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
                       f'{start.words()}, planned in {took * 1e3:.1f} ms')
 
     def _plan(self, goal, planner):
-        """``(start, planned)``: where the plan starts and the plan."""
+        """``(start, planned, t0)``: where the plan starts, the plan, and the ROS time it is expected to start at."""
         if goal.rest is not None:
+            at = goal.rest.at
             start = self._in_the_box(goal.key, goal.rest.at, goal.rest.plan_time)
             if start is None:
                 raise ValueError('the harvest it runs is no longer the one the controller runs')
@@ -247,7 +313,10 @@ class GoalRunner:
             start = self._after_apple_in_hand(at) if goal.kind == Kind.HARVEST else None
             if start is None:
                 start = choose_start(self.running, at, self.port.reference(), self.port.measured())
-        return start, planner.plan(goal.target, start)
+        # (On the ROS clock a moving apple's places are stamped with: the schedule runs as late as the controller's
+        # stalls have delayed it.)
+        t0 = (start.time or at) + self.timing.delay
+        return start, planner.plan(goal.target, start, t0), t0
 
     def _after_apple_in_hand(self, at):
         """A new harvest while one runs takes over at rest in the box after the apple in hand: its Start, or None when
@@ -436,6 +505,8 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
+        for remembered in (self._sway, self._seen, self._closes):
+            remembered.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
             self._superseded += 1
