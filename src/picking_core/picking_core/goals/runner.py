@@ -131,7 +131,7 @@ class GoalRunner:
         return min(np.linalg.norm(np.asarray(q) - p) for q in places) <= SAME_APPLE
 
     def _stamp_time(self, stamp):
-        """A goal's stamp (text) on the schedule clock; now for none."""
+        """A goal's stamp (text) on the port's clock (the ROS clock, as its places are stamped); now for none."""
         if not stamp or stamp == ZERO_KEY:
             return self.port.now()
         sec, nsec = stamp.split('.')
