@@ -428,3 +428,33 @@ def test_a_pick_whose_apple_streams_in_on_the_topic_is_aimed_where_it_will_be_at
     assert np.linalg.norm(tool - _swaying(closes)) < 0.004              # where the apple will be then
     counts = runner._moves['p']
     assert counts['received'] == 30 and counts['spliced'] + counts['replaced'] + counts['held'] == 30, counts
+
+
+def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_with_the_reason(port):
+    runner = GoalRunner(port)
+    runner.take(_pick_at('p', port.t))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    for k in range(1, 31):                                          # a second of a steady sway: fitted
+        port.t += 1 / 30
+        assert runner.retarget(_pick_at('x', port.t).target.pose, port.t_wall, f'{port.t:.9f}') is None
+        if port.sent[-1][0] is not flight:
+            flight = accept(runner, port)
+    sent = len(port.sent)
+    older = runner.retarget(_pick_at('x', port.t - 0.2).target.pose, port.t_wall, f'{port.t - 0.2:.9f}')
+    assert 'out of order' in older
+    ahead = runner.retarget(_pick_at('x', port.t + 1.0).target.pose, port.t_wall, f'{port.t + 1.0:.9f}')
+    assert 'ahead of the clock' in ahead
+    T = _pick_at('x', port.t + 0.01).target.pose.copy()
+    T[1, 3] += 0.08                                                 # another apple, 8 cm off the sway
+    assert 'jumps 8' in runner.retarget(T, port.t_wall, f'{port.t + 0.01:.9f}')
+    assert len(port.sent) == sent and runner._moves['p']['refused'] == 3
+    # The same on the topic: a place of the running apple stamped out of order is refused, not taken.
+    late = _pick_at('late', port.t - 0.3)
+    late.target.poses[0][:3, 3] = runner._seen['p']
+    runner.take(late)
+    assert port.states('late') == ['refused'] and 'out of order' in port.statuses[-1]['text']
+    ahead_goal = _pick_at('ahead', 0.0)
+    ahead_goal.stamp = f'{port.t + 5.0:.9f}'
+    runner.take(ahead_goal)
+    assert port.states('ahead') == ['refused'] and 'ahead of the clock' in port.statuses[-1]['text']

@@ -43,6 +43,8 @@ STREAM_PAUSE = 1.0
 SAME_APPLE = 0.05
 #: m: the noise a stream of a pick's places is taken to have when its motion is fitted (a camera's).
 STREAM_NOISE = 0.003
+#: s: a place stamped further ahead of the clock than this is refused (a sender's clock set wrong).
+AHEAD = 0.1
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -106,7 +108,10 @@ class GoalRunner:
             return
         if goal.kind == Kind.PICK:
             self._sway[goal.key] = SwayFit()
-            self._place(goal.key, goal.target.pose, goal.stamp)
+            why = self._place(goal.key, goal.target.pose, goal.stamp)[1]
+            if why is not None:
+                self.end(goal, Ending(Outcome.REFUSED, why.replace('its place', 'the apple', 1)))
+                return
         self._handle(goal)
 
     def _same_apple(self, goal):
@@ -116,8 +121,11 @@ class GoalRunner:
                 or not self._near_apple(running, goal.target.pose[:3, 3], goal.stamp):
             return False
         why = self.retarget(goal.target.pose, goal.came, goal.stamp)
-        taken = 'taken as its new target' if why is None else f'not moved: {why}'
-        self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key}: {taken}'))
+        if why is not None and why.startswith('its place'):
+            self.end(goal, Ending(Outcome.REFUSED, f'the apple of pick goal {running.key}, but {why}'))
+        else:
+            taken = 'taken as its new target' if why is None else f'not moved: {why}'
+            self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key}: {taken}'))
         return True
 
     def _near_apple(self, running, p, stamp):
@@ -138,28 +146,45 @@ class GoalRunner:
         return self.port.seconds(int(sec) * 1_000_000_000 + int(nsec))
 
     def _place(self, key, pose, stamp):
-        """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted; returns
-        the Follow that aims the pick where the apple will be, or None while it does not sway."""
+        """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted.
+        Returns ``(follow, why)``: the Follow that aims the pick where the apple will be (None while it does not
+        sway), or why the place is refused (stamped ahead of the clock, older than the newest place, or far from
+        where the apple's sway puts it then: another apple taken for it)."""
         fit = self._sway.get(key)
         if fit is None:
-            return None
-        self._seen[key] = np.asarray(pose, float)[:3, 3]
-        fit.update(self._stamp_time(stamp), self._seen[key], np.eye(3) * STREAM_NOISE ** 2)
+            return None, None
+        t, p = self._stamp_time(stamp), np.asarray(pose, float)[:3, 3]
+        if t > self.port.now() + AHEAD:
+            return None, f'its place is stamped {t - self.port.now():.3f} s ahead of the clock'
+        motion = fit.fit()
+        if motion is not None and motion.frequency > 0.0 and t >= fit.t:
+            off = float(np.linalg.norm(p - fit.predict(t)[0]))
+            if off > SAME_APPLE:
+                return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
+        if not fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2):
+            return None, 'its place is stamped before the newest one taken (out of order)'
+        self._seen[key] = p
         motion = fit.fit()
         if motion is None or motion.frequency <= 0.0:
-            return None
-        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key))
+            return None, None
+        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key)), None
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
         the same goal; a newer re-target arriving while this one waits replaces it; ``stamp`` names the re-target (its
         message's stamp, in the statuses). Returns None, or why the re-target was not taken (no such goal; a pick
-        whose final straight approach has begun: a new plan would back out of it)."""
+        whose final straight approach has begun: a new plan would back out of it; a pick's place refused, see
+        :meth:`_place`)."""
         goal = self._retargetable()
         if goal is None:
             return 'no pose or pick goal runs to move'
         self._paused.pop(goal.key, None)
-        follow = self._place(goal.key, pose, stamp) if goal.kind == Kind.PICK else None
+        follow = None
+        if goal.kind == Kind.PICK:
+            follow, why = self._place(goal.key, pose, stamp)
+            if why is not None:
+                self._moved(goal.key, 'refused')
+                return why
         flight = self.lifecycle.flights.get(goal.key)
         if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
                 flight.elapsed >= final_approach(flight.planned.plan):
