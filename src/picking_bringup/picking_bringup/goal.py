@@ -36,24 +36,21 @@ import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError, UnknownROSArgsError
 from rclpy.action import ActionClient
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import Header
 
-from picking_common.middleware import use_fast_discovery
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
 from picking_core.methods import PATH_METHODS, POSE_METHODS
 
-from .stop import DISCOVERY, EXIT_FAILED, EXIT_OK, EXIT_REFUSED, EXIT_TIMEOUT, spin_until, stop
+from .stop import DISCOVERY, EXIT_FAILED, EXIT_OK, EXIT_REFUSED, EXIT_TIMEOUT, in_a_node, spin_until, stop
 
 
 def build_parser():
@@ -355,18 +352,8 @@ def main(argv=None):
             quaternion(args)
     except ValueError as exc:
         parser.error(str(exc))
-    use_fast_discovery()
-    rclpy.init(args=argv)
-    node = GoalClient(f'picking_goal_{os.getpid()}')
-    try:
-        return run(args, node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        # (SIGTERM, as `timeout` sends it, shuts rclpy down under a waiting spin.)
-        print('picking-goal: stopped before the goal ended', file=sys.stderr)
-        return EXIT_TIMEOUT
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return in_a_node(lambda: GoalClient(f'picking_goal_{os.getpid()}'), argv, lambda node: run(args, node),
+                     'the goal ended')
 
 
 if __name__ == '__main__':

@@ -96,23 +96,32 @@ def stop(node, timeout):
     return EXIT_OK if len(canceling) == len(ready) else EXIT_TIMEOUT
 
 
-def main(argv, timeout):
-    """A stop in a process of its own: ``argv`` may name the arm (``--ros-args -r __ns:=/arm2``)."""
+def in_a_node(make_node, argv, work, cut_short):
+    """``work(node)``'s exit code, in a node ``make_node()`` of this process (rclpy started with ``argv``); an
+    interrupt (Ctrl-C, or SIGTERM as `timeout` sends it) ends it with EXIT_TIMEOUT, saying it came before
+    ``cut_short``; the node and rclpy are closed either way."""
     import rclpy
     from rclpy.executors import ExternalShutdownException
-    from rclpy.node import Node
 
     from picking_common.middleware import use_fast_discovery
     use_fast_discovery()
     rclpy.init(args=argv)
-    from rclpy.parameter import Parameter
-    node = Node(f'picking_goal_{os.getpid()}', start_parameter_services=False, enable_rosout=False,
-                parameter_overrides=[Parameter('start_type_description_service', value=False)])
+    node = make_node()
     try:
-        return stop(node, timeout)
+        return work(node)
     except (KeyboardInterrupt, ExternalShutdownException):
-        print('picking-goal: stopped before the stop was answered', file=sys.stderr)
+        print(f'picking-goal: stopped before {cut_short}', file=sys.stderr)
         return EXIT_TIMEOUT
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def main(argv, timeout):
+    """A stop in a process of its own: ``argv`` may name the arm (``--ros-args -r __ns:=/arm2``)."""
+    def make_node():
+        from rclpy.node import Node
+        from rclpy.parameter import Parameter
+        return Node(f'picking_goal_{os.getpid()}', start_parameter_services=False, enable_rosout=False,
+                    parameter_overrides=[Parameter('start_type_description_service', value=False)])
+    return in_a_node(make_node, argv, lambda node: stop(node, timeout), 'the stop was answered')
