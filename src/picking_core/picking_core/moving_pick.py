@@ -85,9 +85,9 @@ def aim(plan_to, predict, rotation, width, at=None, slip=SLIP):
     raises."""
     soonest = at is None
     if soonest:
-        at = closing_time(plan_to(_pose(rotation, predict(0.0)[0]), None), width)
+        at = closing_time(plan_to(grasp_pose(rotation, predict(0.0)[0]), None), width)
     for _ in range(ROUNDS):
-        T = _pose(rotation, predict(at)[0])
+        T = grasp_pose(rotation, predict(at)[0])
         plan = plan_to(T, None)
         closes = closing_time(plan, width)
         if closes < at - AGREE:                     # early: the move to P1 stretched to close on time
@@ -111,7 +111,8 @@ def _segment(plan, label):
     return next(s for s in plan.segments if s.label == label)
 
 
-def _pose(rotation, p):
+def grasp_pose(rotation, p):
+    """The 4x4 grasp pose turned by ``rotation`` (3, 3) at ``p`` (3,)."""
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = rotation, p
     return T

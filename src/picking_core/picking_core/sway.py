@@ -126,6 +126,11 @@ class SwayFit:
         self._fit = None
         return True
 
+    @property
+    def newest(self):
+        """The newest detection applied (3,), m, or None before any."""
+        return self._seen[-1][1] if self._seen else None
+
     def fit(self):
         """The :class:`Fit` of the detections in the window, or None before any."""
         if self._fit is None and self._seen:

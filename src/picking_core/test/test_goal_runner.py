@@ -469,7 +469,7 @@ def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_w
     assert len(port.sent) == sent and runner._moves['p']['refused'] == 3
     # The same on the topic: a place of the running apple stamped out of order is refused, not taken.
     late = _pick_at('late', port.t - 0.3)
-    late.target.poses[0][:3, 3] = runner._seen['p']
+    late.target.poses[0][:3, 3] = runner._sway['p'].newest
     runner.take(late)
     assert port.states('late') == ['refused'] and 'out of order' in port.statuses[-1]['text']
     ahead_goal = _pick_at('ahead', 0.0)

@@ -127,8 +127,3 @@ def _arm(schedule, t, rest):
     begun, plan = live[-1]
     return plan.trajectory.sample([min(t - begun, plan.duration)])[0][0]
 
-
-def _pose(rotation, p):
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = rotation, p
-    return T

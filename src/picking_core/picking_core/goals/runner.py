@@ -82,7 +82,6 @@ class GoalRunner:
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
         self._sway = {}                  # pick goal key -> SwayFit of its target's stamped places
-        self._seen = {}                  # pick goal key -> its apple's latest place (m), taken or not
         self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
@@ -131,8 +130,8 @@ class GoalRunner:
     def _near_apple(self, running, p, stamp):
         """Whether ``p`` seen at ``stamp`` is the apple of pick ``running``: within SAME_APPLE of its latest place, or of
         where its sway puts it then (a stream that stalled finds it farther on)."""
-        places = [self._seen.get(running.key, running.target.pose[:3, 3])]
         fit = self._sway.get(running.key)
+        places = [running.target.pose[:3, 3] if fit is None or fit.newest is None else fit.newest]
         predicted = fit.predict(self._stamp_time(stamp)) if fit is not None else None
         if predicted is not None:
             places.append(predicted[0])
@@ -163,7 +162,6 @@ class GoalRunner:
                 return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
         if not fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2):
             return None, 'its place is stamped before the newest one taken (out of order)'
-        self._seen[key] = p
         motion = fit.fit()
         if motion is None or motion.frequency <= 0.0:
             return None, None
@@ -530,7 +528,7 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
-        for remembered in (self._sway, self._seen, self._closes):
+        for remembered in (self._sway, self._closes):
             remembered.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
