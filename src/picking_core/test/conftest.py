@@ -31,5 +31,10 @@ def arm():
 
 
 @pytest.fixture(scope='session')
+def ur5e():
+    return kinematics.ArmModel.from_urdf(urdf_path('ur5e'))
+
+
+@pytest.fixture(scope='session')
 def arm3():
     return kinematics.ArmModel.from_urdf(urdf_path('picking_arm_3dof'))

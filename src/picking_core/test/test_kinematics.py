@@ -181,7 +181,7 @@ def test_cartesian_path_too_fast_breaks_a_velocity_limit(arm):
         kinematics.cartesian_to_joint(arm, path, seed, max_joint_step=10.0)
 
 
-@pytest.mark.parametrize('fixture', ['arm', 'arm3'])
+@pytest.mark.parametrize('fixture', ['arm', 'arm3', 'ur5e'])
 def test_compiled_ik_agrees_with_the_vectorised_closed_form(fixture, request):
     model = request.getfixturevalue(fixture)
     assert model.load_ik(), 'the compiled IK did not load (numba is a requirement)'

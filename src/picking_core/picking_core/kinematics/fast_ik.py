@@ -55,7 +55,7 @@ class Bound:
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def _image(v, s, lo, hi, revolute):
+def image(v, s, lo, hi, revolute):
     """(v moved by 2 pi turns into [lo, hi] nearest s, True), or (v, False) if it cannot be."""
     if revolute:
         v += _TWO_PI * math.floor((s - v) / _TWO_PI + 0.5)
@@ -68,6 +68,29 @@ def _image(v, s, lo, hi, revolute):
         if lo - _TOL <= v - step <= hi + _TOL:
             return v - step, True
     return v, False
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def check_inputs(pose, seed):
+    """OK, or the status code of a non-finite pose or seed or a pose whose rotation is not proper."""
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(pose[i, j]):
+                return NOT_FINITE
+    for j in range(seed.shape[0]):
+        if not math.isfinite(seed[j]):
+            return BAD_SEED
+    worst = 0.0
+    for i in range(3):
+        for k in range(i, 3):
+            dot = pose[i, 0] * pose[k, 0] + pose[i, 1] * pose[k, 1] + pose[i, 2] * pose[k, 2]
+            worst = max(worst, abs(dot - 1.0) if i == k else abs(dot))
+    det = (pose[0, 0] * (pose[1, 1] * pose[2, 2] - pose[1, 2] * pose[2, 1])
+           - pose[0, 1] * (pose[1, 0] * pose[2, 2] - pose[1, 2] * pose[2, 0])
+           + pose[0, 2] * (pose[1, 0] * pose[2, 1] - pose[1, 1] * pose[2, 0]))
+    if worst > _ROTATION_TOL or det < 0.0:
+        return NOT_ROTATION
+    return OK
 
 
 # One signature, compiled (or loaded from the cache) at import: a call with other types raises
@@ -83,24 +106,10 @@ def solve(geometry, tool_inv, limits, pose, seed, q_out):
     ``seed`` has 3 joints (position only: waist, shoulder, elbow) or 6 (and a
     z-y-z spherical wrist).
     """
+    status = check_inputs(pose, seed)
+    if status != OK:
+        return status
     dof = seed.shape[0]
-    for i in range(4):
-        for j in range(4):
-            if not math.isfinite(pose[i, j]):
-                return NOT_FINITE
-    for j in range(dof):
-        if not math.isfinite(seed[j]):
-            return BAD_SEED
-    worst = 0.0
-    for i in range(3):
-        for k in range(i, 3):
-            dot = pose[i, 0] * pose[k, 0] + pose[i, 1] * pose[k, 1] + pose[i, 2] * pose[k, 2]
-            worst = max(worst, abs(dot - 1.0) if i == k else abs(dot))
-    det = (pose[0, 0] * (pose[1, 1] * pose[2, 2] - pose[1, 2] * pose[2, 1])
-           - pose[0, 1] * (pose[1, 0] * pose[2, 2] - pose[1, 2] * pose[2, 0])
-           + pose[0, 2] * (pose[1, 0] * pose[2, 1] - pose[1, 1] * pose[2, 0]))
-    if worst > _ROTATION_TOL or det < 0.0:
-        return NOT_ROTATION
 
     # The flange (wrist centre at its origin): the pose times the inverse tool transform.
     F = np.empty((3, 4))
@@ -130,7 +139,7 @@ def solve(geometry, tool_inv, limits, pose, seed, q_out):
             cand[0], cand[1], cand[2] = q1, q2, q3
             head, ok = 0.0, True
             for j in range(3):
-                cand[j], ok = _image(cand[j], seed[j], limits[0, j], limits[1, j], limits[2, j])
+                cand[j], ok = image(cand[j], seed[j], limits[0, j], limits[1, j], limits[2, j])
                 if not ok:
                     break
                 head += (cand[j] - seed[j]) ** 2
@@ -172,7 +181,7 @@ def solve(geometry, tool_inv, limits, pose, seed, q_out):
                     cand[3], cand[4], cand[5] = q4, q5, q6
                 dist = head
                 for j in range(3, 6):
-                    cand[j], ok = _image(cand[j], seed[j], limits[0, j], limits[1, j], limits[2, j])
+                    cand[j], ok = image(cand[j], seed[j], limits[0, j], limits[1, j], limits[2, j])
                     if not ok:
                         break
                     dist += (cand[j] - seed[j]) ** 2

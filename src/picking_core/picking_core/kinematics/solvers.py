@@ -1,11 +1,12 @@
 """Inverse kinematics solvers: closed form for the shipped geometries, DLS for any chain.
 
-The closed forms cover the arm family of ``config/``: a waist joint about z, a
-shoulder and an elbow about y (the paper's three joints), and -- for six joints
--- a spherical wrist about z, y, z whose axes meet at the wrist centre. The
-geometry (shoulder height, upper-arm and forearm lengths, tool offset) is read
-from the URDF, so any arm of that shape gets the closed form; every other chain
-gets damped least squares with joint limits and restarts.
+The closed forms cover two arm families. The project's own: a waist joint about
+z, a shoulder and an elbow about y (the paper's three joints), and -- for six
+joints -- a spherical wrist about z, y, z whose axes meet at the wrist centre.
+Universal Robots': three parallel axes (shoulder, elbow, wrist 1) and an offset
+wrist (:class:`OffsetWrist6R`). The geometry is read from the URDF, so any arm
+of either shape gets the closed form; every other chain gets damped least
+squares with joint limits and restarts.
 
 All closed-form work is vectorised over poses and branches. A closed form is
 used only after a self-test against forward kinematics when the arm is loaded.
@@ -34,7 +35,7 @@ def pick_solver(arm):
     configurations exactly through forward kinematics (a self-test at load
     time), so that no per-call confirmation is needed.
     """
-    for cls in (SphericalWrist6R, Elbow3R):
+    for cls in (SphericalWrist6R, OffsetWrist6R, Elbow3R):
         solver = cls.fit(arm)
         if solver is not None and solver.self_test():
             return solver
@@ -83,6 +84,7 @@ class _ClosedForm:
 
     name = ''
     position_only = False
+    kernel = 'fast_ik'      # the module of the compiled version
 
     def __init__(self, arm, base, d_shoulder, l2, l3):
         self.arm = arm
@@ -120,7 +122,7 @@ class _ClosedForm:
         return ''
 
     def quick_reject(self, T):
-        return self._reach_reason(self._targets(T[None])[0])
+        return self.reach_reasons(T[None])[0]
 
     def _test_poses(self, n=64):
         """Random configurations within the limits, and their tool poses."""
@@ -144,7 +146,7 @@ class _ClosedForm:
         for the self-test poses (seeded off their configurations). None without numba,
         or (with a warning) if numba cannot compile or cache it here.
         """
-        fast_ik = load(f'{__package__}.fast_ik', 'the compiled IK', 'IK runs the vectorised closed form')
+        fast_ik = load(f'{__package__}.{self.kernel}', 'the compiled IK', 'IK runs the vectorised closed form')
         if fast_ik is None:
             return None
         bound = fast_ik.Bound(self)
@@ -177,16 +179,19 @@ class _ClosedForm:
         q[~ok] = np.nan
         reasons = [''] * len(T)
         failed = np.flatnonzero(~ok)
-        W = self._targets(T[failed]) if failed.size else None
-        for k, i in enumerate(failed):
-            reasons[i] = (self._reach_reason(W[k]) or
-                          'beyond joint limits: every IK solution puts a joint outside its limits')
+        why = self.reach_reasons(T[failed]) if failed.size else []
+        for i, reason in zip(failed, why):
+            reasons[i] = reason or 'beyond joint limits: every IK solution puts a joint outside its limits'
         return q, ok, reasons
+
+    def reach_reasons(self, T):
+        """Why each pose is out of reach, '' where it is within reach."""
+        return [self._reach_reason(w) for w in self._targets(T)]
 
     def all_solutions(self, T):
         seed = np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof))
         cand, reach_ok = self.candidates(T, seed)
-        return [c if r else c[:0] for c, r in zip(cand, reach_ok)]
+        return [c[np.isfinite(c).all(axis=1)] if r else c[:0] for c, r in zip(cand, reach_ok)]
 
     def _confirm(self, q, T):
         F = self.arm.joint_frames(q)[:, -1]
@@ -284,6 +289,182 @@ class SphericalWrist6R(_ClosedForm):
         out[:, :4, 3], out[:, :4, 4], out[:, :4, 5] = q4, q5, q6
         out[:, 4:, 3], out[:, 4:, 4], out[:, 4:, 5] = q4 + np.pi, -q5, q6 + np.pi
         return out, reach_ok                                           # (N, 8, 6)
+
+
+def _line_meet(p, u, r, w):
+    """The point where the line through ``p`` along ``u`` meets the line through ``r`` along ``w``, or None."""
+    n = np.cross(u, w)
+    nn = n @ n
+    if nn < _TOL:
+        return None
+    d = r - p
+    if abs(d @ n) > _TOL * np.sqrt(nn):                                # skew lines
+        return None
+    return p + u * (np.cross(d, w) @ n) / nn
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _dh(theta, d, a, ca, sa):
+    """Denavit-Hartenberg transforms Rz(theta) Tz(d) Tx(a) Rx(alpha), theta (...,), shape (..., 4, 4)."""
+    c, s = np.cos(theta), np.sin(theta)
+    A = np.zeros(theta.shape + (4, 4))
+    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = c, -s * ca, s * sa, a * c
+    A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = s, c * ca, -c * sa, a * s
+    A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, d
+    A[..., 3, 3] = 1.0
+    return A
+
+
+def _rigid_inv(A):
+    """Inverse of rigid transforms (..., 4, 4)."""
+    out = np.zeros_like(A)
+    Rt = np.swapaxes(A[..., :3, :3], -1, -2)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum('...ij,...j->...i', Rt, A[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
+#: (cos alpha, sin alpha) of the six joints' Denavit-Hartenberg twists in Universal Robots' convention.
+UR_TWIST = ((0.0, 1.0), (1.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 0.0))
+
+
+class OffsetWrist6R(_ClosedForm):
+    """Universal Robots' geometry: up to 8 solutions.
+
+    The waist's axis meets the shoulder's; shoulder, elbow and wrist 1 are
+    parallel; wrist 1 meets wrist 2 and wrist 2 meets wrist 3, at right angles
+    (an offset wrist, no wrist centre). The URDF is read into Denavit-Hartenberg
+    form (``d4, d5, d6, a2, a3`` and the twists of :data:`UR_TWIST`) between a
+    fixed base and tool transform, with each joint's zero offset, and solved by
+    the published analytic solution (K. Hawkins, "Analytic Inverse Kinematics for
+    the Universal Robots UR-5/UR-10 Arms", 2013): two waist angles, two wrist 2
+    angles, two elbow angles.
+    """
+
+    name = 'offset_wrist'
+    kernel = 'fast_ik_ur'
+
+    def __init__(self, arm, base, tool, offsets, d4, d5, d6, a2, a3):
+        self.arm = arm
+        self.base_inv, self.tool_inv = _rigid_inv(base), _rigid_inv(tool)
+        self.offsets = np.asarray(offsets, dtype=float)
+        self.d4, self.d5, self.d6, self.a2, self.a3 = d4, d5, d6, a2, a3
+        self.reach = (abs(a2 - a3), a2 + a3)
+        self.revolute = np.ones(6)
+
+    @classmethod
+    def fit(cls, arm):
+        if arm.dof != 6 or any(t == 'prismatic' for t in arm.joint_types):
+            return None
+        frames = arm.joint_frames(np.zeros((1, 6)))[0]
+        w = [_unit(frames[i, :3, :3] @ arm._axes[i]) for i in range(6)]
+        r = [frames[i, :3, 3] for i in range(6)]
+        if not (abs(w[0] @ w[1]) < _TOL and _is(w[1], w[2]) and _is(w[2], w[3])
+                and abs(w[3] @ w[4]) < _TOL and abs(w[4] @ w[5]) < _TOL):
+            return None
+        shoulder = _line_meet(r[0], w[0], r[1], w[1])
+        wrist_1 = _line_meet(r[3], w[3], r[4], w[4])
+        wrist_2 = _line_meet(r[4], w[4], r[5], w[5])
+        if shoulder is None or wrist_1 is None or wrist_2 is None:
+            return None
+        # Denavit-Hartenberg frames 0..6 at the zero configuration; frame i-1's z is joint i's axis.
+        z = [w[0], w[1], w[2], w[3], w[4], w[5], w[5]]
+        x = [None] * 7
+        x[1] = x[0] = _unit(np.cross(z[0], z[1]))
+        origin = [shoulder, shoulder, None, None, wrist_1, wrist_2, None]
+        lengths = []
+        for i in (2, 3):            # across the parallel axes, from the last origin to the next axis
+            v = r[i] - origin[i - 1]
+            v = v - (v @ z[i - 1]) * z[i - 1]
+            lengths.append(float(np.linalg.norm(v)))
+            if lengths[-1] < 1e-6:
+                return None
+            x[i], origin[i] = v / lengths[-1], origin[i - 1] + v
+        x[4] = _unit(np.cross(z[3], z[4]))
+        x[6] = x[5] = _unit(np.cross(z[5], z[4]))
+        d4 = float((wrist_1 - origin[3]) @ z[3])
+        d5 = float((wrist_2 - wrist_1) @ z[4])
+        d6 = float((frames[-1, :3, 3] - wrist_2) @ z[5])
+        if abs(d6) < 0.01:
+            d6 = 0.1           # any flange distance along wrist 3 will do; the tool transform takes the rest
+        origin[6] = wrist_2 + d6 * z[6]
+        offsets = [float(np.arctan2(np.cross(x[i], x[i + 1]) @ z[i], x[i] @ x[i + 1])) for i in range(6)]
+
+        def frame(i):
+            F = np.eye(4)
+            F[:3, 0], F[:3, 1], F[:3, 2], F[:3, 3] = x[i], np.cross(z[i], x[i]), z[i], origin[i]
+            return F
+
+        return cls(arm, frame(0), _rigid_inv(frame(6)) @ frames[-1], offsets, d4, d5, d6, *lengths)
+
+    def _chain(self, theta, i):
+        ca, sa = UR_TWIST[i]
+        d = (0.0, 0.0, 0.0, self.d4, self.d5, self.d6)[i]
+        a = (0.0, self.a2, self.a3, 0.0, 0.0, 0.0)[i]
+        return _dh(theta, d, a, ca, sa)
+
+    def _flange(self, T):
+        """The poses as Denavit-Hartenberg frame 6 in frame 0."""
+        return self.base_inv @ T @ self.tool_inv
+
+    def candidates(self, T, seed):
+        n = len(T)
+        F = self._flange(T)
+        R, p = F[:, :3, :3], F[:, :3, 3]
+        d4, d6, a2, a3 = self.d4, self.d6, self.a2, self.a3
+        p5 = p - d6 * R[:, :, 2]
+        rho = np.hypot(p5[:, 0], p5[:, 1])
+        psi = np.arctan2(p5[:, 1], p5[:, 0])
+        with np.errstate(invalid='ignore', divide='ignore'):
+            delta = np.arcsin(d4 / rho)                                 # NaN inside the shoulder offset
+            t1 = np.stack([psi + delta, psi + np.pi - delta], axis=1)           # (N, 2)
+            s1, c1 = np.sin(t1), np.cos(t1)
+            # Wrist 2: its cosine from the position, its sine's size from the orientation (well
+            # conditioned near the singular wrist, where an arc cosine is not).
+            c5 = (p[:, None, 0] * s1 - p[:, None, 1] * c1 - d4) / d6
+            u = R[:, None, 0, 0] * s1 - R[:, None, 1, 0] * c1
+            v = R[:, None, 0, 1] * s1 - R[:, None, 1, 1] * c1
+            s5 = np.where(np.abs(c5) <= 1.0 + 1e-12, np.hypot(u, v), np.nan)
+            t1 = np.repeat(t1, 2, axis=1)                                      # (N, 4): waist x wrist 2
+            sign = np.array([1.0, -1.0, 1.0, -1.0])
+            c5, s5, u, v = (np.repeat(a, 2, axis=1) for a in (c5, s5, u, v))
+            t5 = np.arctan2(sign * s5, c5)
+            singular = s5 < _SINGULAR
+            t6 = np.where(singular, seed[:, None, 5] + self.offsets[5], np.arctan2(-sign * v, sign * u))
+            # Frame 4 in frame 1: the planar shoulder-elbow-wrist 1 problem.
+            T14 = (_rigid_inv(self._chain(t1, 0)) @ F[:, None] @ _rigid_inv(self._chain(t6, 5))
+                   @ _rigid_inv(self._chain(t5, 4)))
+            x, y = T14[..., 0, 3], T14[..., 1, 3]
+            D = (x * x + y * y - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
+            t3p = np.arccos(np.where(np.abs(D) <= 1.0 + 1e-12, np.clip(D, -1.0, 1.0), np.nan))
+            t3 = np.concatenate([t3p, -t3p], axis=1)                            # (N, 8)
+            x, y = np.tile(x, 2), np.tile(y, 2)
+            t2 = np.arctan2(y, x) - np.arctan2(a3 * np.sin(t3), a2 + a3 * np.cos(t3))
+            phi = np.tile(np.arctan2(T14[..., 1, 0], T14[..., 0, 0]), 2)
+            theta = np.stack([np.tile(t1, 2), t2, t3, phi - t2 - t3, np.tile(t5, 2), np.tile(t6, 2)], axis=2)
+        q = theta - self.offsets
+        q[~np.isfinite(q).all(axis=2)] = np.nan
+        return q, np.isfinite(q).all(axis=2).any(axis=1).reshape(n)
+
+    def reach_reasons(self, T):
+        F = self._flange(T)
+        reasons = []
+        for f, (cand, ok) in zip(F, zip(*self.candidates(T, np.zeros((len(T), 6))))):
+            p5 = f[:3, 3] - self.d6 * f[:3, 2]
+            rho = float(np.hypot(p5[0], p5[1]))
+            if ok:
+                reasons.append('')
+            elif rho < abs(self.d4):
+                reasons.append(f'out of reach: wrist 2 would be {rho:.3f} m from the waist axis, closer than the '
+                               f'shoulder offset {abs(self.d4):.3f} m')
+            else:
+                reasons.append(f'out of reach: no shoulder and elbow angles put the wrist there (upper arm '
+                               f'{self.a2:.3f} m, forearm {self.a3:.3f} m)')
+        return reasons
 
 
 class NumericSolver:

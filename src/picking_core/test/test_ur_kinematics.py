@@ -1,0 +1,113 @@
+"""The shipped UR5e and the offset-wrist closed form (Universal Robots' geometry)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from picking_core import kinematics
+from picking_core.kinematics import Unreachable, pose_matrix
+from picking_description import urdf_path
+
+# Universal Robots' published Denavit-Hartenberg parameters of the UR5e (m, rad).
+D = (0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996)
+A = (0.0, -0.425, -0.3922, 0.0, 0.0, 0.0)
+ALPHA = (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)
+GRASP = 0.15          # tool0 beyond the flange
+
+
+def dh_fk(q):
+    """The UR5e's tool0 by the textbook product of Denavit-Hartenberg transforms."""
+    T = np.eye(4)
+    for theta, d, a, alpha in zip(q, D, A, ALPHA):
+        ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+        T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                          [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
+    return T @ pose_matrix([0.0, 0.0, GRASP])
+
+
+def test_the_ur5e_is_the_published_geometry(ur5e):
+    assert ur5e.solver == 'offset_wrist'
+    assert ur5e.joint_names == ('shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint',
+                                'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint')
+    assert ur5e.extra_joint_names == ('gripper_joint',)
+    assert ur5e.max_velocity == pytest.approx(np.full(6, np.pi))
+    assert np.isfinite(ur5e.max_acceleration).all() and np.isfinite(ur5e.max_jerk).all()
+    # Stretched out along -x at the shoulder's height, the flange facing -y.
+    assert ur5e.fk(np.zeros(6))[:3, 3] == pytest.approx([-0.8172, -0.1333 - 0.0996 - GRASP, 0.1625 - 0.0997],
+                                                         abs=1e-12)
+    Q = np.random.default_rng(0).uniform(ur5e.lower, ur5e.upper, (200, 6))
+    assert ur5e.fk(Q) == pytest.approx(np.stack([dh_fk(q) for q in Q]), abs=1e-12)
+
+
+def test_ik_of_fk_for_10000_random_configurations_to_a_nanometre(ur5e):
+    rng = np.random.default_rng(2026)
+    Q = rng.uniform(ur5e.lower, ur5e.upper, (10_000, 6))
+    T = ur5e.fk(Q)
+    seeds = np.clip(Q + rng.normal(0.0, 0.05, Q.shape), ur5e.lower, ur5e.upper)
+    q, ok, reasons = ur5e.ik_batch(T, seeds)
+    assert ok.all(), set(reasons)
+    assert np.all(ur5e.within_limits(q))
+    F = ur5e.fk(q)
+    assert np.abs(F[:, :3, 3] - T[:, :3, 3]).max() <= 1e-9
+    angle = Rotation.from_matrix(np.swapaxes(F[:, :3, :3], 1, 2) @ T[:, :3, :3]).magnitude()
+    assert angle.max() <= 1e-9
+    nearest = np.sum((q - seeds) ** 2, axis=1)
+    assert np.all(nearest <= np.sum((Q - seeds) ** 2, axis=1) + 1e-9)
+    exact, _, _ = ur5e.ik_batch(T, Q)
+    assert np.abs(exact - Q).max() < 1e-8
+
+
+def test_a_general_pose_has_eight_solutions(ur5e):
+    q_true = np.array([0.4, -1.1, 1.3, -0.7, 1.2, 0.3])
+    T = ur5e.fk(q_true)
+    solutions = ur5e.ik_all(T)
+    assert solutions.shape == (8, 6)
+    assert ur5e.fk(solutions) == pytest.approx(np.broadcast_to(T, (8, 4, 4)), abs=1e-9)
+    wrapped = np.mod(solutions + np.pi, 2 * np.pi)
+    assert len({tuple(np.round(s, 6)) for s in wrapped}) == 8
+    assert ur5e.ik(T, q_true + 0.02) == pytest.approx(q_true, abs=1e-9)
+
+
+def test_a_singular_wrist_keeps_wrist_3_at_the_seed(ur5e):
+    q_true = np.array([0.3, -1.2, 1.0, 0.2, 0.0, 0.5])           # wrist 2 at zero: wrists 1 and 3 aligned
+    seed = q_true + 0.01
+    q = ur5e.ik(ur5e.fk(q_true), seed)
+    assert q[5] == pytest.approx(seed[5], abs=1e-12)
+    assert ur5e.fk(q) == pytest.approx(ur5e.fk(q_true), abs=1e-9)
+
+
+@pytest.mark.parametrize('position, why', [
+    ([1.5, 0.0, 0.3], 'no shoulder and elbow angles'),
+    ([0.0, 0.0, 0.6], 'closer than the shoulder offset'),
+])
+def test_out_of_reach_says_why(ur5e, position, why):
+    with pytest.raises(Unreachable, match=f'out of reach: .*{why}'):
+        ur5e.ik(pose_matrix(position, Rotation.from_euler('x', 180, degrees=True).as_quat()))
+
+
+def test_the_vendors_frames_get_the_closed_form_too():
+    """A UR description with its base turned half a turn and its tool frame turned (as Universal
+    Robots' own description has them) reads into the same closed form."""
+    urdf = urdf_path('ur5e').read_text()
+    urdf = urdf.replace('<parent link="base_link"/><child link="shoulder_link"/>',
+                        '<parent link="base_link_inertia"/><child link="shoulder_link"/>')
+    urdf = urdf.replace('<link name="shoulder_link">', '''<link name="base_link_inertia"/>
+  <joint name="base_link-base_link_inertia" type="fixed"><parent link="base_link"/>
+    <child link="base_link_inertia"/><origin xyz="0 0 0" rpy="0 0 3.141592653589793"/></joint>
+  <link name="shoulder_link">''')
+    urdf = urdf.replace('<origin xyz="0 0 0.15" rpy="0 0 0"/>', '<origin xyz="0.01 0 0.15" rpy="1.5707963 0 1.5707963"/>')
+    arm = kinematics.ArmModel.from_urdf_string(urdf, joint_limits=kinematics.load_joint_limits(
+        urdf_path('ur5e').with_name('ur5e_joint_limits.yaml')))
+    assert arm.solver == 'offset_wrist'
+    rng = np.random.default_rng(3)
+    Q = rng.uniform(arm.lower, arm.upper, (2000, 6))
+    T, seeds = arm.fk(Q), Q + 0.01
+    q, ok, _ = arm.ik_batch(T, seeds)
+    assert ok.all() and arm.fk(q) == pytest.approx(T, abs=1e-9)
+    assert np.all(np.sum((q - seeds) ** 2, axis=1) <= np.sum((Q - seeds) ** 2, axis=1) + 1e-9)
+
+
+def test_an_arm_whose_waist_misses_the_shoulder_axis_gets_the_numeric_solver():
+    urdf = urdf_path('ur5e').read_text().replace('<origin xyz="0 0 0" rpy="1.5707963267948966 0 0"/>',
+                                                 '<origin xyz="0.05 0 0" rpy="1.5707963267948966 0 0"/>')
+    assert kinematics.ArmModel.from_urdf_string(urdf).solver == 'numeric'
