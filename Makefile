@@ -33,7 +33,7 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 	$(BIN)/python tools/build_interfaces.py --build-dir build/interfaces $(INTERFACES)
 	# Compile the IK, forward kinematics and trajectory kernels into numba's cache now, not in the
 	# first node that plans.
-	$(BIN)/python -c 'from picking_core.kinematics import ArmModel; from picking_description import urdf_path; [ArmModel.from_urdf(urdf_path(a)).load_ik() for a in ("picking_arm", "ur5e")]'
+	$(BIN)/python -c 'from picking_core.kinematics import ArmModel; from picking_description import urdf_path; [ArmModel.from_urdf(urdf_path(a)).load_ik() for a in ("picking_arm", "ur5e", "fr3")]'
 	$(BIN)/python -c 'import picking_core.trajectory.fast_sample'
 	touch $@
 

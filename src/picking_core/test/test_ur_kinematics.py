@@ -111,3 +111,62 @@ def test_an_arm_whose_waist_misses_the_shoulder_axis_gets_the_numeric_solver():
     urdf = urdf_path('ur5e').read_text().replace('<origin xyz="0 0 0" rpy="1.5707963267948966 0 0"/>',
                                                  '<origin xyz="0.05 0 0" rpy="1.5707963267948966 0 0"/>')
     assert kinematics.ArmModel.from_urdf_string(urdf).solver == 'numeric'
+
+
+# Franka's published kinematics of the FR3 (Craig's modified Denavit-Hartenberg: a_{i-1}, d_i, alpha_{i-1}).
+FR3 = ((0.0, 0.333, 0.0), (0.0, 0.0, -np.pi / 2), (0.0, 0.316, np.pi / 2), (0.0825, 0.0, np.pi / 2),
+       (-0.0825, 0.384, -np.pi / 2), (0.0, 0.0, np.pi / 2), (0.088, 0.0, np.pi / 2))
+FR3_FLANGE = 0.107
+
+
+@pytest.fixture(scope='module')
+def fr3():
+    return kinematics.ArmModel.from_urdf(urdf_path('fr3'))
+
+
+def fr3_fk(q):
+    T = np.eye(4)
+    for theta, (a, d, alpha) in zip(q, FR3):
+        T = T @ pose_matrix([a, 0, 0], Rotation.from_euler('x', alpha).as_quat()) \
+              @ pose_matrix([0, 0, d], Rotation.from_euler('z', theta).as_quat())
+    return T @ pose_matrix([0.0, 0.0, FR3_FLANGE + GRASP])
+
+
+def test_the_fr3_is_the_published_geometry(fr3):
+    assert fr3.dof == 7 and fr3.solver == 'numeric' and fr3.load_ik()
+    assert fr3.max_acceleration == pytest.approx(np.full(7, 10.0))
+    Q = np.random.default_rng(0).uniform(fr3.lower, fr3.upper, (200, 7))
+    assert fr3.fk(Q) == pytest.approx(np.stack([fr3_fk(q) for q in Q]), abs=1e-12)
+
+
+def test_fr3_numeric_ik_solves_random_reachable_poses_and_never_calls_them_out_of_reach(fr3):
+    rng = np.random.default_rng(11)
+    Q = rng.uniform(fr3.lower, fr3.upper, (1000, 7))
+    T = fr3.fk(Q)
+    q, ok, reasons = fr3.ik_batch(T)                                   # from the default seed
+    assert ok.mean() >= 0.995
+    assert all(r.startswith('no solution found') for r, k in zip(reasons, ok) if not k)
+    F = fr3.fk(q[ok])
+    assert np.abs(F[:, :3, 3] - T[ok, :3, 3]).max() < 1e-9 and np.all(fr3.within_limits(q[ok]))
+    # From nearby seeds the redundant joint stays near the seed.
+    seeds = np.clip(Q + rng.normal(0.0, 0.05, Q.shape), fr3.lower, fr3.upper)
+    q, ok, _ = fr3.ik_batch(T, seeds)
+    assert ok.all()
+    assert np.median(np.abs(q - seeds).max(axis=1)) < 0.2
+
+
+def test_fr3_out_of_reach_only_when_proven(fr3):
+    with pytest.raises(Unreachable, match='out of reach: the tool would be 3.0.. m from the first joint'):
+        fr3.ik(pose_matrix([3.0, 0.0, 0.333]))
+    # Within the chain's length but below the floor the arm cannot bend to: not found, not "out of reach".
+    with pytest.raises(Unreachable, match='no solution found'):
+        fr3.ik(pose_matrix([0.0, 0.0, -0.5]))
+
+
+def test_the_numeric_ik_without_numba_runs_the_same_method(fr3, monkeypatch):
+    solver = fr3._solver
+    monkeypatch.setattr(solver, 'compiled', None)
+    rng = np.random.default_rng(12)
+    Q = rng.uniform(fr3.lower, fr3.upper, (20, 7))
+    q, ok, _ = solver.solve(fr3.fk(Q), np.clip(Q + 0.05, fr3.lower, fr3.upper))
+    assert ok.mean() >= 0.9 and fr3.fk(q[ok]) == pytest.approx(fr3.fk(Q[ok]), abs=1e-9)

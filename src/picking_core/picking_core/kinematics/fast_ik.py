@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-OK, NOT_FINITE, NOT_ROTATION, BAD_SEED, OUT_OF_REACH, BEYOND_LIMITS = range(6)
+OK, NOT_FINITE, NOT_ROTATION, BAD_SEED, OUT_OF_REACH, BEYOND_LIMITS, NO_SOLUTION = range(7)
 
 _TWO_PI = 2.0 * math.pi
 _TOL = 1e-9           # the vectorised path's limit tolerance

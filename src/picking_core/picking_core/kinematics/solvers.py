@@ -468,24 +468,47 @@ class OffsetWrist6R(_ClosedForm):
 
 
 class NumericSolver:
-    """Damped least squares with joint limits and restarts, for any serial chain.
+    """Levenberg-Marquardt (damped least squares) with joint limits and restarts, for any serial chain.
 
-    Arms with fewer than six joints solve the tool position only.
+    Compiled (:mod:`.fast_ik_numeric`) where numba is, after a self-test; the
+    same method in numpy otherwise. Arms with fewer than six joints solve the
+    tool position only. A pose is called out of reach only when it is farther
+    from the first joint than the chain is long; any other failure is "no
+    solution found".
     """
 
     name = 'numeric'
-    compiled = None
 
-    def __init__(self, arm, restarts=8, iterations=200, damping=1e-3, seed=0):
+    def __init__(self, arm, restarts=100, iterations=30):
         self.arm = arm
         self.position_only = arm.dof < 6
-        self.restarts, self.iterations, self.damping = restarts, iterations, damping
-        self.rng = np.random.default_rng(seed)
+        self.restarts, self.iterations = restarts, iterations
         origins = arm.joint_frames(np.zeros((1, arm.dof)))[0]
         hops = np.linalg.norm(np.diff(origins[:, :3, 3], axis=0), axis=1)
         prismatic_travel = np.where(arm._prismatic, np.abs(np.nan_to_num(arm.upper, posinf=0.0)), 0.0)
         self.base_point = origins[0, :3, 3]
         self.reach = (0.0, float(hops.sum() + prismatic_travel.sum()))
+
+    @functools.cached_property
+    def compiled(self):
+        """The compiled solver bound to this arm, or None (without numba, or if it fails its
+        self-test: 64 random configurations' poses solved, each confirmed by forward kinematics)."""
+        kernel = load(f'{__package__}.fast_ik_numeric', 'the compiled numeric IK', 'IK runs in numpy')
+        if kernel is None:
+            return None
+        bound = kernel.Bound(self)
+        Q, T = _ClosedForm._test_poses(self)
+        q, status = np.empty_like(Q), np.empty(len(Q), dtype=np.int64)
+        bound.many(np.ascontiguousarray(T), np.ascontiguousarray(np.roll(Q, 1, axis=0)), q, status)
+        ok = status == kernel.OK
+        if ok.mean() < 0.9 or not self._confirm(q[ok], T[ok]).all():
+            warnings.warn('the compiled numeric IK failed its self-test: IK runs in numpy', RuntimeWarning,
+                          stacklevel=2)
+            return None
+        return bound
+
+    def _confirm(self, q, T):
+        return _ClosedForm._confirm(self, q, T)
 
     def quick_reject(self, T):
         d = float(np.linalg.norm(T[:3, 3] - self.base_point))
@@ -498,6 +521,31 @@ class NumericSolver:
         q, ok, _ = self.solve(T, np.broadcast_to(self.arm._seed(None), (len(T), self.arm.dof)))
         return [q[i:i + 1] if ok[i] else q[i:i] for i in range(len(T))]
 
+    def _no_solution(self):
+        return (f'no solution found: the numeric IK converged from none of {self.restarts + 1} starts within '
+                f'the joint limits (the pose is within the chain\'s length: it may be reachable)')
+
+    def solve(self, T, seed):
+        n = len(T)
+        reasons = [self.quick_reject(t) for t in T]
+        compiled = self.compiled
+        if compiled is not None:
+            q, status = np.empty((n, self.arm.dof)), np.empty(n, dtype=np.int64)
+            compiled.many(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(seed, dtype=float), q, status)
+            ok = status == 0
+            q[~ok] = np.nan
+            return q, ok, [r if r or k else self._no_solution() for r, k in zip(reasons, ok)]
+        q = np.full((n, self.arm.dof), np.nan)
+        ok = np.zeros(n, bool)
+        for i in range(n):
+            if not reasons[i]:
+                sol = self._solve_one(T[i], seed[i])
+                if sol is None:
+                    reasons[i] = self._no_solution()
+                else:
+                    q[i], ok[i] = sol, True
+        return q, ok, reasons
+
     def _error(self, q, T):
         F = self.arm.joint_frames(q[None])[0, -1]
         e_pos = T[:3, 3] - F[:3, 3]
@@ -508,41 +556,31 @@ class NumericSolver:
         return np.concatenate([e_pos, e_rot])
 
     def _solve_one(self, T, seed):
+        """The compiled kernel's method in numpy (its fallback): a solution, or None."""
         arm = self.arm
         lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
         hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
-        starts = [np.clip(seed, lo, hi)] + [self.rng.uniform(lo, hi) for _ in range(self.restarts)]
+        rng = np.random.default_rng(0)
+        starts = [seed] + [rng.uniform(lo, hi) for _ in range(self.restarts)]
         rows = slice(0, 3) if self.position_only else slice(0, 6)
-        best = None
         for q in starts:
+            q = np.clip(q, arm.lower, arm.upper)
+            e = self._error(q, T)
+            err, lam = np.linalg.norm(e), 1e-3
             for _ in range(self.iterations):
-                e = self._error(q, T)
-                err = np.linalg.norm(e)
                 if err < 1e-10:
-                    return q, ''
+                    return q
                 J = arm.jacobian(q)[rows]
-                lam2 = (self.damping * min(1.0, err)) ** 2     # damp far away, Gauss-Newton near
-                dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(J.shape[0]), e)
-                q = np.clip(q + dq, lo, hi)
-            err = np.linalg.norm(self._error(q, T))
-            if best is None or err < best[1]:
-                best = (q, err)
-        _, s, _ = np.linalg.svd(arm.jacobian(best[0])[rows])
-        if s[-1] < 1e-6:
-            return None, 'singular: the numeric IK stalls at a singular configuration'
-        return None, (f'beyond joint limits or out of reach: no solution within the limits found '
-                      f'({self.restarts + 1} starts, residual {best[1]:.2e})')
-
-    def solve(self, T, seed):
-        n = len(T)
-        q = np.full((n, self.arm.dof), np.nan)
-        ok = np.zeros(n, bool)
-        reasons = [''] * n
-        for i in range(n):
-            reason = self.quick_reject(T[i])
-            if not reason:
-                sol, reason = self._solve_one(T[i], seed[i])
-                if sol is not None:
-                    q[i], ok[i] = sol, True
-            reasons[i] = reason
-        return q, ok, reasons
+                dq = J.T @ np.linalg.solve(J @ J.T + lam * np.eye(J.shape[0]), e)
+                dq *= min(1.0, 0.5 / max(np.abs(dq).max(), 1e-300))
+                trial = np.clip(q + dq, arm.lower, arm.upper)
+                e_trial = self._error(trial, T)
+                if np.linalg.norm(e_trial) < err:
+                    q, e, err, lam = trial, e_trial, np.linalg.norm(e_trial), max(lam * 0.3, 1e-12)
+                else:
+                    lam *= 10.0
+                    if lam > 1e4:
+                        break
+            if err < 1e-10:
+                return q
+        return None
