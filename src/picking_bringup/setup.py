@@ -14,6 +14,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         # The workspace's parameter files (config/), so that a colcon install finds them in share/picking_bringup/config.
         ('share/' + package_name + '/config', sorted(glob.glob(os.path.join('..', '..', 'config', '*.yaml')))),
+        ('share/' + package_name + '/config/arms', sorted(glob.glob(os.path.join('..', '..', 'config', 'arms', '*.yaml')))),
     ],
     install_requires=['setuptools'],
     # Test dependencies go in extras_require: tests_require is ignored by colcon

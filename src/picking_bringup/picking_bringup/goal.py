@@ -326,6 +326,9 @@ def run(args, node):
         return EXIT_TIMEOUT
     res, took = done.result, time.monotonic() - t_sent
     outcome = {0: 'succeeded', 1: 'refused', 2: 'aborted', 3: 'superseded', 4: 'canceled'}.get(res.outcome, '?')
+    if done.status != GoalStatus.STATUS_SUCCEEDED and outcome == 'succeeded':
+        # An empty result on a goal the server did not succeed: the server ended it without its own answer.
+        outcome, res.message = 'aborted', 'the action server ended the goal without a result (see its log)'
     moved = f'; plan {res.duration:.3f} s; largest tracking error {progress["error"]:.5f} rad' if res.duration > 0 else ''
     print(f'{outcome}: {res.message} ({took:.2f} s after sending{moved})')
     if done.status == GoalStatus.STATUS_SUCCEEDED:

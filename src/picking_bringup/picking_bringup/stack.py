@@ -183,7 +183,7 @@ class Stack:
     """
 
     def __init__(self, ns='/', log_dir='log/stack', args=None, files=None, config=None, echo=False, foxglove=None,
-                 without=()):
+                 without=(), arm=None):
         from .shipped import config_dir
         self.ns = '/' + ns.strip('/')
         #: An arm in a namespace names its frames under it ("arm2/base_link"), as robot_state_publisher's frame_prefix.
@@ -195,6 +195,8 @@ class Stack:
         for name in FRAMED if self.frame_prefix else ():
             self.args[name] = ['-p', f'frame_prefix:={self.frame_prefix}', *self.args[name]]
         self.files = {name: tuple((files or {}).get(name, NODES[name][1])) for name in NODES}
+        if arm:
+            self._use_arm(arm)
         self.echo = echo
         unknown = set(without) - set(REPLACEABLE)
         if unknown:
@@ -208,6 +210,19 @@ class Stack:
             if name not in without:
                 self.start(name)
         self.foxglove = None if foxglove is None else foxglove_process(self.ns, foxglove, self.log_dir, echo)
+
+    def _use_arm(self, arm):
+        """Every node on the description's ``arm`` (``urdf/<arm>.urdf``), with ``config/arms/<arm>.yaml`` after
+        its own files; ValueError naming the arms there if it has none."""
+        from picking_description import urdf_path
+        settings = Path('arms') / f'{arm}.yaml'
+        if not (self.config / settings).exists():
+            shipped = sorted(p.stem for p in (self.config / 'arms').glob('*.yaml'))
+            raise ValueError(f'no arm {arm!r}: config/arms has {", ".join(shipped) or "none"}')
+        urdf = urdf_path(arm)
+        for name in NODES:
+            self.files[name] = (*self.files[name], str(settings))
+            self.args[name] = ['-p', f'urdf_path:={urdf}', *self.args[name]]
 
     def _sim_tree(self):
         """The simulator's ``tree`` ('' when it hangs none): its last ``tree:=`` argument, else its files'."""
@@ -437,6 +452,8 @@ def build_parser():
                                             '  picking-stack -p picking_controller:update_rate:=250.0 --for 10\n  picking-stack --paper',
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--ns', default='/', help='namespace of the arm (default: %(default)s)')
+    parser.add_argument('--arm', help='a shipped arm other than the default picking arm: ur5e or fr3 '
+                                      '(picking_description/urdf/<ARM>.urdf with config/arms/<ARM>.yaml)')
     parser.add_argument('--domain', type=int, help='ROS_DOMAIN_ID (default: the environment\'s, else 0)')
     parser.add_argument('-p', dest='params', action='append', default=[], metavar='NODE:NAME:=VALUE',
                         help='a parameter override for one node, e.g. picking_sim:noise_std:=0.001 (repeatable)')
@@ -479,8 +496,8 @@ def main(argv=None):
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stopping.set())
     files = {'picking-planner': NODES['picking-planner'][1] + ('paper_methods.yaml',)} if args.paper else None
-    if args.platform is not None and args.without:
-        parser.error('--without runs one arm: not with --platform')
+    if args.platform is not None and (args.without or args.arm):
+        parser.error('--without and --arm run one arm: not with --platform')
     log_dir = run_log_dir(args.log_dir)
     if args.platform is not None:
         try:
@@ -490,8 +507,11 @@ def main(argv=None):
             parser.error(str(exc))
         started = {f'{p.name} ({p.log_path.parent.name})': p for p in stack.processes}
     else:
-        stack = Stack(args.ns, log_dir, args=extra, files=files, echo=args.show_logs, foxglove=args.foxglove,
-                      without=args.without)
+        try:
+            stack = Stack(args.ns, log_dir, args=extra, files=files, echo=args.show_logs, foxglove=args.foxglove,
+                          without=args.without, arm=args.arm)
+        except (OSError, ValueError) as exc:
+            parser.error(str(exc))
         started = stack.nodes
     for name, p in started.items():
         print(f'picking-stack: started {name} (pid {p.pid})', flush=True)

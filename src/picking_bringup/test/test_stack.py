@@ -82,3 +82,18 @@ def test_a_simulator_that_hangs_no_apples_has_its_planner_claim_apples_by_the_pl
     assert 'grasp_check:=false' not in started['picking-planner']
     bringup.Stack(log_dir=tmp_path, without=('picking-sim',))          # a real arm: its gripper is judged
     assert 'grasp_check:=false' not in started['picking-planner']
+
+
+def test_an_arm_gives_every_node_its_urdf_and_its_settings_after_their_own(tmp_path, monkeypatch):
+    import pytest
+
+    from picking_bringup import stack as bringup
+    from picking_description import urdf_path
+    started = {}
+    monkeypatch.setattr(bringup.Stack, 'start', lambda self, name: started.__setitem__(name, self))
+    stack = bringup.Stack(log_dir=tmp_path, arm='ur5e')
+    for name in bringup.NODES:
+        assert f'urdf_path:={urdf_path("ur5e")}' in stack.args[name]
+        assert stack.files[name][-1] == 'arms/ur5e.yaml' and (stack.config / stack.files[name][-1]).exists()
+    with pytest.raises(ValueError, match="no arm 'nope': config/arms has fr3, ur5e"):
+        bringup.Stack(log_dir=tmp_path, arm='nope')

@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+import traceback
 from dataclasses import replace
 from typing import Protocol
 
@@ -305,6 +306,11 @@ class GoalRunner:
             return
         except ValueError as exc:
             self.refuse(goal, str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001 - a bug must still end the goal, with a reason
+            self.port.log('ERROR', f'{goal.kind.value} goal {goal.key}: planning failed:\n{traceback.format_exc()}')
+            self.refuse(goal, f'planning failed on an internal error ({type(exc).__name__}: {exc}; the '
+                              'planner\'s log has the traceback)')
             return
         took = time.perf_counter() - t0
         start = self._in_time(start, took)

@@ -531,7 +531,7 @@ class NumericSolver:
         compiled = self.compiled
         if compiled is not None:
             q, status = np.empty((n, self.arm.dof)), np.empty(n, dtype=np.int64)
-            compiled.many(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(seed, dtype=float), q, status)
+            compiled.many(np.array(T, dtype=float), np.array(seed, dtype=float), q, status)   # writable copies
             ok = status == 0
             q[~ok] = np.nan
             return q, ok, [r if r or k else self._no_solution() for r, k in zip(reasons, ok)]

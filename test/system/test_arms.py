@@ -1,0 +1,79 @@
+"""The shipped UR5e and FR3 brought up as a user would (``picking-stack --arm``): a pose goal and a pick
+through the planner's actions, checked on the arm's own joint_states with its own kinematics."""
+
+import numpy as np
+import pytest
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped
+from picking_interfaces.action import MoveToPose, Pick
+from rclpy.action import ActionClient
+from rosstack import Client, ensure_rclpy, goal_result, make_pose, send_goal, stop_all
+from scipy.spatial.transform import Rotation
+
+from picking_bringup import stack as launcher
+from picking_core.kinematics import ArmModel
+from picking_description import urdf_path
+
+FACING = Rotation.from_euler('y', 90, degrees=True).as_quat()     # the tool's z along +x
+
+
+def stamped(xyz, quat):
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = make_pose(xyz, quat)
+    return msg
+
+
+@pytest.fixture(scope='module', params=['ur5e', 'fr3'])
+def arm(request, tmp_path_factory):
+    name = request.param
+    ensure_rclpy()
+    stack = launcher.Stack(f'/{name}', tmp_path_factory.mktemp(name), arm=name)
+    client = Client(f'/{name}')
+    try:
+        client.wait_ready(60.0)
+        actions = {n: ActionClient(client, kind, n) for n, kind in (('pick', Pick), ('move_to_pose', MoveToPose))}
+        for n, action in actions.items():
+            assert action.wait_for_server(timeout_sec=20.0), f'no {n} server'
+        yield name, ArmModel.from_urdf(urdf_path(name)), client, actions
+        for action in actions.values():
+            client.retire(action)
+    finally:
+        client.close()
+        codes = stop_all(stack.processes)
+    assert set(codes) == {0}, codes
+
+
+def tool_pose(model, client):
+    state = client.states[-1][1]
+    q = [state.position[list(state.name).index(n)] for n in model.joint_names]
+    return model.fk(q)
+
+
+def test_joint_states_name_the_arms_own_joints(arm):
+    _, model, client, _ = arm
+    client.wait_for(lambda: client.states, 10.0, 'joint_states')
+    assert tuple(client.states[-1][1].name) == model.all_joint_names
+
+
+def test_a_pose_goal_reaches_its_pose(arm):
+    _, model, client, actions = arm
+    target = [0.5, 0.2, 0.4]
+    down = Rotation.from_euler('x', 180, degrees=True).as_quat()
+    handle, _ = send_goal(client, actions['move_to_pose'], MoveToPose.Goal(pose=stamped(target, down)))
+    done = goal_result(client, handle)
+    assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
+    client.wait_for(lambda: np.linalg.norm(tool_pose(model, client)[:3, 3] - target) < 2e-3, 5.0,
+                    'the tool within 2 mm of the target')
+    assert np.allclose(tool_pose(model, client)[:3, :3], Rotation.from_quat(down).as_matrix(), atol=1e-2)
+
+
+def test_a_pick_runs_its_cycle_and_comes_home(arm):
+    name, model, client, actions = arm
+    apple = [0.6, 0.15, 0.6]
+    handle, feedback = send_goal(client, actions['pick'], Pick.Goal(target=stamped(apple, FACING)))
+    done = goal_result(client, handle, timeout=40.0)
+    assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
+    phases = {f.phase for f in feedback}
+    assert any('grasp' in p for p in phases) and any('P0 back home' in p for p in phases), phases
+    assert 0.0 < max(f.tracking_error for f in feedback) < 0.1
