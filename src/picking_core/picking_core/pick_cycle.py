@@ -142,6 +142,10 @@ class PickSettings:
             raise ValueError(f'home_positions must be {arm.dof} finite joint values (rad)')
         if not arm.within_limits(np.asarray(self.home_positions, float)):
             raise ValueError(f'home_positions {list(self.home_positions)} are outside the joint limits')
+        tool = arm.fk(np.asarray(self.home_positions, float))[:3, 3]
+        if tool[2] < 0.0:
+            raise ValueError(f'home_positions {list(self.home_positions)} put the tool {-tool[2]:.3f} m below the '
+                             f"arm's base ({arm.tool_frame} at z = {tool[2]:.3f} m in {arm.base_frame})")
         if not (np.isfinite(self.transfer_lift) and 0.0 <= self.transfer_lift < 1.0):
             raise ValueError(f'transfer_lift must be in [0, 1) rad, got {self.transfer_lift}')
         for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height'):
@@ -618,10 +622,22 @@ class PickCycle:
         return {**poses, 'P4': P4[best], 'P5': P5[best]}, q4[best], q5[best]
 
     def _clearance(self, qa, qb):
-        """The transfer's via point: halfway in joint space, the shoulder lifted by ``transfer_lift``."""
+        """The transfer's via point: halfway in joint space, the shoulder turned by ``transfer_lift`` the way that
+        raises the tool."""
         mid = 0.5 * (qa + qb)
-        mid[1] -= self.s.transfer_lift
+        j = self._shoulder
+        rise = self.arm.jacobian(mid)[2, j]
+        mid[j] += self.s.transfer_lift * (1.0 if rise >= 0.0 else -1.0)
         return np.clip(mid, self.arm.lower, self.arm.upper)
+
+    @functools.cached_property
+    def _shoulder(self):
+        """The shoulder: the first joint whose axis is horizontal at the arm's zero (it lifts the arm)."""
+        frames = self.arm.joint_frames(np.zeros((1, self.arm.dof)))[0]
+        for j in range(self.arm.dof):
+            if abs((frames[j, :3, :3] @ self.arm._axes[j])[2]) < 0.1:
+                return j
+        raise ValueError(f'{self.arm.name} has no joint with a horizontal axis to lift the transfer with')
 
     def _gripper_time(self, wanted):
         """A dwell long enough for the fingers to move within their limits (quintic peaks)."""

@@ -51,7 +51,12 @@ class PlannerNode(Node):
     def __init__(self, **kwargs):
         super().__init__('picking_planner', **kwargs)
         declare(self, PARAMS)
-        self.arm = ArmModel.from_urdf(self.get_parameter('urdf_path').value or default_urdf())
+        value = self.get_parameter
+        self.arm = ArmModel.from_urdf(value('urdf_path').value or default_urdf(), value('base_frame').value,
+                                      value('tool_frame').value or None, value('joint_limits_path').value or None)
+        missing = self.arm.missing_limits()
+        if missing:
+            raise ValueError(f'{missing}: give them in joint_limits_path (MoveIt\'s joint_limits.yaml)')
         # The compiled IK and forward kinematics load now (a fraction of a second from numba's cache), not on
         # the first goal.
         if not self.arm.load_ik() and self.arm.solver != 'numeric':
@@ -63,6 +68,7 @@ class PlannerNode(Node):
         p = {n: self.get_parameter(n).value for n in COLLISION}
         self.world = World(self.arm, self._scene_file(p['scene_file']), p['collision_clearance'],
                            p['avoid_collisions'])
+        self._check_home(self.pick.home_positions)
         self.add_on_set_parameters_callback(self._on_parameters)
         # Goals, paths, clouds and scenes come in any frame /tf knows; the arm's base is this one there.
         self.base_tf = self.get_parameter('frame_prefix').value + self.arm.base_frame
@@ -88,6 +94,13 @@ class PlannerNode(Node):
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); method '
                                f'{s.method}, path_method {s.path_method}, speed_scale {s.speed_scale}; avoiding '
                                f'{self.world.words()}')
+
+    def _check_home(self, home):
+        """A home (P0) in collision is refused (at start, or as a new parameter value), with what it touches."""
+        home = np.asarray(home, float)
+        contact = self.world.checker.first_contact(home[None]) if self.world.enabled else None
+        if contact is not None:
+            raise ValueError(f'home_positions {home.tolist()} put the arm in collision: {contact}')
 
     def goal_planner(self):
         """The goal planner of the moment (parameters may have changed the planner or the pick settings)."""
@@ -138,6 +151,8 @@ class PlannerNode(Node):
             pick = PickSettings(**self._values(PICK, changes)).validate(self.arm) if set(changes) & set(PICK) \
                 else self.pick
             scene = self._scene_file(changes['scene_file']) if 'scene_file' in changes else None
+            if 'home_positions' in changes:
+                self._check_home(pick.home_positions)
         except (ValueError, TypeError, OSError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         self.planner, self.pick = planner, pick

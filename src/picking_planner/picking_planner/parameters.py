@@ -89,6 +89,12 @@ _TEXT = {
 
 PARAMS = (
     Param('urdf_path', '', "the arm's URDF file; empty: picking_description/urdf/picking_arm.urdf", read_only=True),
+    Param('joint_limits_path', '', "the arm's acceleration and jerk limits (MoveIt's joint_limits.yaml); empty: "
+          '<URDF stem>_joint_limits.yaml beside the URDF, if there is one', read_only=True),
+    Param('base_frame', 'base_link', "the URDF link the arm's chain starts at: goals, plans and the scene are in it",
+          read_only=True),
+    Param('tool_frame', '', "the URDF link that goes to a goal's pose (the grasp point); empty: tool0, else the "
+          "chain's one tip", read_only=True),
     Param('frame_prefix', '', 'prefix of this arm\'s frames on /tf (an arm in a namespace: "arm1/"): its base there is '
           '<frame_prefix><base frame>', read_only=True),
     Param('transform_timeout', 0.2, 'how long a goal, cloud or scene in another frame waits for its transform into the '

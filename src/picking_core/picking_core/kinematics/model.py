@@ -156,6 +156,16 @@ class ArmModel:
                 self.lower[i] = float(entry.get('min_position', self.lower[i]))
                 self.upper[i] = float(entry.get('max_position', self.upper[i]))
 
+    def missing_limits(self):
+        """'' when every joint of the chain has finite velocity, acceleration and jerk limits (and the extra
+        joints velocity and acceleration), else which are missing, in words."""
+        _, _, v, a = self.all_limits
+        names = self.all_joint_names
+        missing = [f'{kind} limit for {", ".join(n for n, x in zip(names, values) if not np.isfinite(x))}'
+                   for kind, values in (('velocity', v), ('acceleration', a), ('jerk', self.max_jerk))
+                   if not np.isfinite(values).all()]
+        return f'{self.name} has no {"; no ".join(missing)}' if missing else ''
+
     def __repr__(self) -> str:
         return (f'ArmModel({self.name!r}, dof={self.dof}, {self.base_frame} -> {self.tool_frame}, '
                 f'solver={self.solver!r})')
@@ -471,10 +481,23 @@ def _check_pose(T):
 
 
 def load_joint_limits(path):
-    """Read a MoveIt-style joint_limits.yaml (safe loader: no code runs)."""
+    """Read a MoveIt-style joint_limits.yaml (safe loader: no code runs). Values tagged ``!degrees`` (as
+    Universal Robots' files write them) are read in degrees and given in radians."""
     import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def degrees(loader, node):
+        value = loader.construct_scalar(node)
+        try:
+            return math.radians(float(value))
+        except ValueError:
+            raise ValueError(f'{path}: !degrees needs a number, got {value!r}') from None
+
+    Loader.add_constructor('!degrees', degrees)
     with open(path) as f:
-        data = yaml.safe_load(f) or {}
+        data = yaml.load(f, Loader=Loader) or {}      # noqa: S506 - a SafeLoader with one numeric tag
     if not isinstance(data, dict):
         raise ValueError(f'{path}: expected a mapping with joint_limits')
     return data

@@ -1,4 +1,4 @@
-"""The shipped UR5e and the offset-wrist closed form (Universal Robots' geometry)."""
+"""The shipped UR5e and FR3: their kinematics, IK (closed form for the UR family, numeric for any chain), limits."""
 
 import numpy as np
 import pytest
@@ -170,3 +170,43 @@ def test_the_numeric_ik_without_numba_runs_the_same_method(fr3, monkeypatch):
     Q = rng.uniform(fr3.lower, fr3.upper, (20, 7))
     q, ok, _ = solver.solve(fr3.fk(Q), np.clip(Q + 0.05, fr3.lower, fr3.upper))
     assert ok.mean() >= 0.9 and fr3.fk(q[ok]) == pytest.approx(fr3.fk(Q[ok]), abs=1e-9)
+
+
+def test_joint_limits_in_degrees_as_universal_robots_write_them(tmp_path):
+    limits = tmp_path / 'joint_limits.yaml'
+    limits.write_text('joint_limits:\n  elbow_joint:\n    has_velocity_limits: true\n    max_velocity: !degrees 180.0\n'
+                      '    has_position_limits: true\n    min_position: !degrees -90\n    max_position: !degrees 90\n')
+    arm = kinematics.ArmModel.from_urdf(urdf_path('ur5e'), joint_limits=limits)
+    i = arm.joint_names.index('elbow_joint')
+    assert arm.max_velocity[i] == pytest.approx(np.pi) and arm.upper[i] == pytest.approx(np.pi / 2)
+    limits.write_text('joint_limits:\n  elbow_joint:\n    max_velocity: !degrees fast\n')
+    with pytest.raises(ValueError, match='!degrees needs a number'):
+        kinematics.load_joint_limits(limits)
+
+
+def test_missing_acceleration_and_jerk_limits_are_named():
+    arm = kinematics.ArmModel.from_urdf(urdf_path('ur5e'), joint_limits={})
+    assert arm.missing_limits() == ('ur5e has no acceleration limit for shoulder_pan_joint, shoulder_lift_joint, '
+                                    'elbow_joint, wrist_1_joint, wrist_2_joint, wrist_3_joint, gripper_joint; no jerk '
+                                    'limit for shoulder_pan_joint, shoulder_lift_joint, elbow_joint, wrist_1_joint, '
+                                    'wrist_2_joint, wrist_3_joint')
+    for name in ('picking_arm', 'ur5e', 'fr3'):
+        assert kinematics.ArmModel.from_urdf(urdf_path(name)).missing_limits() == ''
+
+
+def test_a_home_with_the_tool_below_the_base_is_refused(ur5e):
+    from picking_core.pick_cycle import PickSettings
+    with pytest.raises(ValueError, match=r'put the tool 0\.\d+ m below the arm\'s base'):
+        PickSettings(home_positions=(0.0, 0.2, 1.6, 0.0, -0.23, 0.0)).validate(ur5e)   # the default arm's home
+
+
+@pytest.mark.parametrize('name, shoulder', [('picking_arm', 1), ('ur5e', 1), ('fr3', 1)])
+def test_the_transfer_lifts_the_shoulder_found_from_the_geometry(name, shoulder):
+    from picking_core.pick_cycle import PickCycle
+    from picking_core.planning import Planner
+    arm = kinematics.ArmModel.from_urdf(urdf_path(name))
+    cycle = PickCycle(Planner(arm))
+    assert cycle._shoulder == shoulder
+    q = arm.lower * 0.0 + np.clip(0.3, arm.lower, arm.upper)
+    via = cycle._clearance(q, q)
+    assert arm.fk(via)[2, 3] > arm.fk(q)[2, 3]                  # the tool rises
