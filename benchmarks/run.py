@@ -7,7 +7,7 @@ the Table 1 cycle in process, 3 goal -> JointTrajectory over DDS, 4 the controll
 loop at 1 kHz, 5 servo tracking through the cycle, 6 several arms side by side,
 7 the jerk-limited cycle with the optimal method, 8 a tree harvested by one arm and by 2-4 arms, 9 collision
 checks and a blocked apple planned around its twig, 10 apples counted by the simulator's fruit world, 11 a swaying
-apple picked where it will be. Every ROS process runs with
+apple picked where it will be, 12 the UR5e's and the FR3's IK and cycle. Every ROS process runs with
 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST in a ROS_DOMAIN_ID of this run's own.
 """
 
@@ -37,7 +37,7 @@ HEADER = ['#', 'figure', 'ours', 'detail (peer side by side, or the figures behi
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='fewer repeats and shorter runs (a smoke run)')
-    parser.add_argument('--only', default='1,2,3,4,5,6,7,8,9,10,11', help='comma-separated rows to run (default all)')
+    parser.add_argument('--only', default='1,2,3,4,5,6,7,8,9,10,11,12', help='comma-separated rows to run (default all)')
     parser.add_argument('--out', type=Path, default=Path('docs/benchmarks.md'))
     args = parser.parse_args(argv)
     rows_wanted = {int(x) for x in args.only.split(',')}
@@ -89,6 +89,10 @@ def main(argv=None):
         import bench_sway
         print('row 11: a swaying apple picked, counted by the fruit world', flush=True)
         rows += measure('11', bench_sway.swaying_apples)
+    if 12 in rows_wanted:
+        import bench_arms
+        print("row 12: the UR5e's and the FR3's IK against roboticstoolbox, and the cycle on each", flush=True)
+        rows += measure('12', lambda: bench_arms.run(repeats))
     rows.sort(key=lambda r: int(r[0]))
     total_steal = steal_share(first_times, cpu_times())
     text = table(rows, HEADER)

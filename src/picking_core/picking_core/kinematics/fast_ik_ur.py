@@ -48,20 +48,20 @@ SIGNATURE = ('int64(float64[::1], float64[::1], float64[:, ::1], float64[:, ::1]
              'float64[:, ::1], float64[::1], float64[::1])')
 
 
-@njit(SIGNATURE, cache=True, nogil=True, error_model='numpy')
-def solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out):
-    """The valid solution nearest ``seed`` for the tool ``pose`` into ``q_out``; a status code."""
+@njit(cache=True, nogil=True, error_model='numpy')
+def _solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out, frames, angles):
+    """:func:`solve` with its scratch arrays given (``frames`` 6x4, ``angles`` 12): a batch allocates them once."""
     status = check_inputs(pose, seed)
     if status != OK:
         return status
     d4, d5, d6, a2, a3 = dh[0], dh[1], dh[2], dh[3], dh[4]
     # F = base_inv @ pose @ tool_inv: Denavit-Hartenberg frame 6 in frame 0 (rows 0..2).
-    G = np.empty((3, 4))
+    G = frames[:3]
     for i in range(3):
         for j in range(4):
             G[i, j] = (base_inv[i, 0] * pose[0, j] + base_inv[i, 1] * pose[1, j]
                        + base_inv[i, 2] * pose[2, j] + base_inv[i, 3] * pose[3, j])
-    F = np.empty((3, 4))
+    F = frames[3:]
     for i in range(3):
         for j in range(4):
             F[i, j] = (G[i, 0] * tool_inv[0, j] + G[i, 1] * tool_inv[1, j]
@@ -75,8 +75,7 @@ def solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out):
     delta = math.asin(d4 / rho)
 
     best, reached = math.inf, False
-    theta = np.empty(6)
-    cand = np.empty(6)
+    theta, cand = angles[:6], angles[6:]
     for k1 in range(2):
         t1 = psi + delta if k1 == 0 else psi + math.pi - delta
         s1, c1 = math.sin(t1), math.cos(t1)
@@ -139,9 +138,16 @@ def solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out):
     return BEYOND_LIMITS if reached else OUT_OF_REACH
 
 
+@njit(SIGNATURE, cache=True, nogil=True, error_model='numpy')
+def solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out):
+    """The valid solution nearest ``seed`` for the tool ``pose`` into ``q_out``; a status code."""
+    return _solve(dh, offsets, base_inv, tool_inv, limits, pose, seed, q_out, np.empty((6, 4)), np.empty(12))
+
+
 @njit('void(float64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, :, ::1], '
       'float64[:, ::1], float64[:, ::1], int64[::1])', cache=True, nogil=True, error_model='numpy')
 def solve_many(dh, offsets, base_inv, tool_inv, limits, poses, seeds, q_out, status_out):
     """:func:`solve` for every pose ``poses[i]`` from ``seeds[i]`` into ``q_out[i]``, ``status_out[i]``."""
+    frames, angles = np.empty((6, 4)), np.empty(12)
     for i in range(poses.shape[0]):
-        status_out[i] = solve(dh, offsets, base_inv, tool_inv, limits, poses[i], seeds[i], q_out[i])
+        status_out[i] = _solve(dh, offsets, base_inv, tool_inv, limits, poses[i], seeds[i], q_out[i], frames, angles)
