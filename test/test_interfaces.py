@@ -10,6 +10,9 @@ import pytest
 UPSTREAM = {
     # ros-perception/vision_msgs 4.1 (Jazzy), as its generated type descriptions record it.
     'vision_msgs/msg/Detection3DArray': 'RIHS01_793f5eab9595ac1c0da07873cc859db42eae51f0ee76056db8562515d830e018',
+    # ros-controls/control_msgs (Jazzy), as its generated type description sources record it.
+    'control_msgs/msg/JointTrajectoryControllerState':
+        'RIHS01_6cb9ac0858fc11b54bd6c0a46f032ea243c16856182276d8eb0875f6ce6a8335',
 }
 
 

@@ -75,7 +75,6 @@ def test_a_goal_succeeds_with_feedback_of_desired_actual_and_error(arm):
 
 
 @pytest.mark.parametrize('make, code, words', [
-    (lambda: goal([0.1] * 6, 1.0, names=ARM_JOINTS[:5] + ['nope']), Result.INVALID_JOINTS, 'unknown joints'),
     (lambda: goal([0.0, 0.0, 9.0, 0.0, 0.0, 0.0], 1.0), Result.INVALID_GOAL, 'beyond its limit'),
     (lambda: goal([0.1] * 6, 1.0, path_tolerance=[JointTolerance(name='nope', position=0.1)]), Result.INVALID_GOAL,
      'unknown joint'),
@@ -85,6 +84,36 @@ def test_an_invalid_goal_ends_aborted_with_its_code_and_reason(arm, make, code, 
     handle, _ = send(client, action, make())
     status, res = result(client, handle)
     assert status == GoalStatus.STATUS_ABORTED and res.error_code == code and words in res.error_string
+
+
+def test_a_goal_naming_an_unknown_joint_is_rejected_when_sent(arm):
+    # As a joint trajectory controller does; controller_status says why (a rejection carries no reason).
+    client, action = arm
+    since = time.monotonic()
+    future = action.send_goal_async(goal([0.1] * 6, 1.0, names=ARM_JOINTS[:5] + ['nope']))
+    handle = client.wait_for(lambda: future.done() and future.result(), 10.0, 'the goal response')
+    assert not handle.accepted
+    client.wait_for(lambda: any('unknown joints' in m.message for t, m in client.controller_status if t >= since),
+                    10.0, 'controller_status to say why')
+
+
+def test_controller_state_gives_the_reference_the_measurement_and_their_difference(arm):
+    from control_msgs.msg import JointTrajectoryControllerState
+    client, action = arm
+    states = []
+    sub = client.create_subscription(JointTrajectoryControllerState, 'controller_state', states.append, 10)
+    try:
+        handle, _ = send(client, action, goal([0.3, 0.0, 0.0, 0.0, 0.0, 0.0], 1.0))
+        assert result(client, handle)[0] == GoalStatus.STATUS_SUCCEEDED
+        client.wait_for(lambda: len(states) > 20, 10.0, 'controller_state')
+    finally:
+        client.retire(sub)
+    s = states[-1]
+    assert list(s.joint_names)[:6] == ARM_JOINTS
+    n = len(s.joint_names)
+    assert len(s.reference.positions) == len(s.reference.velocities) == len(s.reference.accelerations) == n
+    assert np.allclose(np.subtract(s.reference.positions, s.feedback.positions), s.error.positions)
+    assert abs(s.reference.positions[0] - (HOME[0] + 0.3)) < 1e-6
 
 
 def test_an_old_goal_ends_with_old_header_timestamp(arm):

@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTrajectoryControllerState
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -47,6 +48,8 @@ from .parameters import PARAMS, RUNTIME
 
 #: s an ended goal's result is kept for its client.
 RESULT_TIMEOUT = 5
+#: Hz of controller_state (a joint trajectory controller publishes it at its update rate; this one's loop is 1 kHz).
+STATE_RATE = 100.0
 
 
 def _tolerances(p):
@@ -104,8 +107,13 @@ class ControllerNode(Node):
         # Ended goals' results are kept RESULT_TIMEOUT s for their clients (rclpy's default, 15 min, lets the status
         # array every client reads grow with each goal of a stream of re-targets).
         self.action = ActionServer(self, FollowJointTrajectory, 'follow_joint_trajectory',
-                                   execute_callback=self._execute, goal_callback=lambda _: GoalResponse.ACCEPT,
+                                   execute_callback=self._execute, goal_callback=self._on_goal,
                                    cancel_callback=self._cancel, result_timeout=RESULT_TIMEOUT)
+        # The state a joint trajectory controller publishes (its reference, the measurement, their difference), for
+        # clients written for ros2_controllers; joint_commands carries the same reference at the loop's rate.
+        self.pub_state = self.create_publisher(JointTrajectoryControllerState, 'controller_state', RELIABLE)
+        self._newest = None                          # (stamp ns, reference) of the loop's last command
+        self.create_timer(1.0 / STATE_RATE, self._publish_state)
         monitor_rate = p['action_monitor_rate']
         # Runs only while an action goal does: an idle controller's executor stays asleep.
         self._feedback_timer = self.create_timer(1.0 / monitor_rate, self._publish_feedback)
@@ -209,6 +217,37 @@ class ControllerNode(Node):
         self._report([event])
 
     # -- the follow_joint_trajectory action ---------------------------------------------
+    def _on_goal(self, request):
+        """A goal whose joints are not this arm's is rejected when it is sent, as a joint trajectory controller
+        rejects it (the reason goes to controller_status: a rejection carries none)."""
+        try:
+            self.core.splicer.validator.order(request.trajectory.joint_names)
+        except ValueError as exc:
+            self._report([Event('ERROR', f'goal rejected: {exc}')])
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _publish_state(self):
+        newest, state = self._newest, self._last_state
+        if newest is None or self.pub_state.get_subscription_count() == 0:
+            return
+        ns, (q, qd, qdd) = newest
+        msg = JointTrajectoryControllerState()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+        msg.joint_names = list(self.core.names)
+        msg.reference.positions, msg.reference.velocities = q.tolist(), qd.tolist()
+        msg.reference.accelerations = qdd.tolist()
+        msg.output.positions = q.tolist()
+        if state is not None:
+            try:
+                measured = reorder(state.name, state.position, self.core.names, 'joint_states')
+            except (ValueError, IndexError):
+                measured = None
+            if measured is not None:
+                msg.feedback.positions = measured.tolist()
+                msg.error.positions = (q - measured).tolist()
+        self.pub_state.publish(msg)
+
     async def _execute(self, handle):
         """Run one goal; its result comes from the event that ends it (reached, a tolerance
         violated, preempted, canceled, feedback lost), or from the reason it was refused."""
@@ -307,6 +346,7 @@ class ControllerNode(Node):
                 self._commanding = True
                 self.loop_stats.reset()
             self.pub_cmd.publish(self._writer.write(ns, *ref))
+            self._newest = ns, ref
 
     def _report_loop(self):
         if self._commanding:

@@ -95,6 +95,14 @@ PARAMS = (
           read_only=True),
     Param('tool_frame', '', "the URDF link that goes to a goal's pose (the grasp point); empty: tool0, else the "
           "chain's one tip", read_only=True),
+    Param('controller_action', 'follow_joint_trajectory', "the arm controller's FollowJointTrajectory action (a "
+          "ros2_controllers joint trajectory controller: '<controller>/follow_joint_trajectory')", read_only=True),
+    Param('controller_state', '', "the arm controller's JointTrajectoryControllerState topic, where a plan from a "
+          "moving arm reads its reference ('<controller>/controller_state'); empty: picking-controller's "
+          'joint_commands', read_only=True),
+    Param('gripper_action', '', 'a GripperCommand action for the gripper (gripper_action_controller: '
+          "'<controller>/gripper_cmd'): trajectories then carry the arm's joints only and the gripper is commanded "
+          'when a plan moves it; empty: the gripper is a joint of the trajectory (picking-controller)', read_only=True),
     Param('frame_prefix', '', 'prefix of this arm\'s frames on /tf (an arm in a namespace: "arm1/"): its base there is '
           '<frame_prefix><base frame>', read_only=True),
     Param('transform_timeout', 0.2, 'how long a goal, cloud or scene in another frame waits for its transform into the '
