@@ -210,3 +210,59 @@ def test_the_transfer_lifts_the_shoulder_found_from_the_geometry(name, shoulder)
     q = arm.lower * 0.0 + np.clip(0.3, arm.lower, arm.upper)
     via = cycle._clearance(q, q)
     assert arm.fk(via)[2, 3] > arm.fk(q)[2, 3]                  # the tool rises
+
+
+def _write_stl(path, vertices, faces):
+    """A binary STL of the triangles ``faces`` (indices into ``vertices``), m."""
+    import struct
+    with open(path, 'wb') as f:
+        f.write(b'\0' * 80 + struct.pack('<I', len(faces)))
+        for tri in faces:
+            f.write(struct.pack('<3f', 0.0, 0.0, 0.0))
+            for i in tri:
+                f.write(struct.pack('<3f', *vertices[i]))
+            f.write(b'\0\0')
+
+
+def _tube(radius, length, n=16):
+    """A closed tube along x, from 0 to ``length``: its vertices and triangles."""
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([np.zeros(n), radius * np.cos(a), radius * np.sin(a)], axis=1)
+    vertices = np.vstack([ring, ring + [length, 0.0, 0.0]])
+    faces = [(i, (i + 1) % n, n + i) for i in range(n)] + [((i + 1) % n, n + (i + 1) % n, n + i) for i in range(n)]
+    faces += [(0, i, i + 1) for i in range(1, n - 1)] + [(n, n + i + 1, n + i) for i in range(1, n - 1)]
+    return vertices, faces
+
+
+def test_mesh_and_box_links_are_bounded_by_capsules_that_hold_them(tmp_path, monkeypatch):
+    from picking_core.kinematics.capsules import ArmCapsules
+    from picking_core.kinematics.urdf import parse_collisions
+    vertices, faces = _tube(0.05, -0.3922)
+    (tmp_path / 'my_arm' / 'meshes').mkdir(parents=True)
+    _write_stl(tmp_path / 'my_arm' / 'meshes' / 'forearm.stl', vertices, faces)
+    _write_stl(tmp_path / 'wrist.stl', *_tube(0.04, 0.1))
+    monkeypatch.setenv('ROS_PACKAGE_PATH', str(tmp_path))
+    urdf = urdf_path('ur5e').read_text()
+    forearm = ('<collision><origin xyz="-0.1961 0 0.007" rpy="0 1.5707963267948966 0"/><geometry><cylinder '
+               'radius="0.045" length="0.3922"/></geometry></collision>')
+    assert forearm in urdf
+    urdf = urdf.replace(forearm, '<collision><origin xyz="0 0 0.007"/><geometry>'
+                                 '<mesh filename="package://my_arm/meshes/forearm.stl"/></geometry></collision>')
+    urdf = urdf.replace('<collision><geometry><cylinder radius="0.045" length="0.1"/></geometry></collision>',
+                        '<collision><geometry><mesh filename="wrist.stl" scale="1 1 1"/></geometry></collision>'
+                        '<collision><geometry><box size="0.05 0.05 0.2"/></geometry></collision>', 1)
+    (tmp_path / 'arm.urdf').write_text(urdf)
+    arm = kinematics.ArmModel.from_urdf(tmp_path / 'arm.urdf', joint_limits=urdf_path('ur5e').with_name(
+        'ur5e_joint_limits.yaml'))
+    shapes = {c.link: c for c in reversed(parse_collisions(arm.urdf, arm.urdf_dir))}
+    mesh = shapes['forearm_link']
+    inside = (np.linalg.inv(mesh.origin) @ np.c_[vertices + [0, 0, 0.007], np.ones(len(vertices))].T)[:3].T
+    z = np.clip(inside[:, 2], -mesh.length / 2, mesh.length / 2)
+    gap = np.linalg.norm(inside - np.c_[np.zeros((len(z), 2)), z], axis=1)
+    assert gap.max() <= mesh.radius + 1e-6                          # every vertex inside
+    assert mesh.radius == pytest.approx(0.05, abs=2e-3) and mesh.length == pytest.approx(0.3922, abs=0.02)
+    capsules = ArmCapsules.from_arm(arm)
+    assert {'forearm_link', 'wrist_1_link'} <= set(capsules.links)
+    missing = urdf.replace('package://my_arm/meshes/forearm.stl', 'package://my_arm/meshes/gone.stl')
+    with pytest.raises(ValueError, match="mesh 'package://my_arm/meshes/gone.stl' not found"):
+        parse_collisions(missing, tmp_path)

@@ -48,12 +48,17 @@ def test_the_arms_capsules_come_from_the_urdf_and_follow_forward_kinematics(arm)
     assert d.min() > 0.5
 
 
-def test_collision_geometry_must_be_a_cylinder_or_a_sphere_on_the_arms_chain():
+def test_collision_geometry_is_a_known_shape_on_the_arms_chain():
     text = URDF.read_text()
     boxed = text.replace('<cylinder radius="0.045" length="0.40"/></geometry></collision>',
                          '<box size="0.1 0.1 0.4"/></geometry></collision>')
-    with pytest.raises(ValueError, match='cylinder or a sphere'):
-        ArmCapsules.from_arm(ArmModel(boxed))
+    capsules = ArmCapsules.from_arm(ArmModel(boxed))                 # a box: the capsule that holds it
+    k = capsules.links.index('forearm_link')
+    assert capsules.radius[k] == pytest.approx(np.hypot(0.05, 0.05))
+    coned = text.replace('<cylinder radius="0.045" length="0.40"/></geometry></collision>',
+                         '<cone radius="0.1" length="0.4"/></geometry></collision>')
+    with pytest.raises(ValueError, match='cylinder, sphere, box or mesh'):
+        ArmCapsules.from_arm(ArmModel(coned))
     finger = text.replace('<link name="gripper_finger_link">',
                           '<link name="gripper_finger_link">\n<collision><geometry><sphere radius="0.01"/>'
                           '</geometry></collision>')

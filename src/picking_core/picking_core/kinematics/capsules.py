@@ -53,7 +53,7 @@ class ArmCapsules:
                     where[joint.child] = (f, offset @ joint.origin)
                     changed = True
         links, frame, ends, radius = [], [], [], []
-        for c in parse_collisions(arm.urdf):
+        for c in parse_collisions(arm.urdf, arm.urdf_dir):
             if c.link not in where:
                 raise ValueError(f'link {c.link!r} has collision geometry but does not move with the arm\'s chain '
                                  'from base to tool: bound it within the link it hangs from')

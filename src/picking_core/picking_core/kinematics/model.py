@@ -59,7 +59,7 @@ class ArmModel:
         if tip not in links:
             raise ValueError(f'tool frame {tip!r} is not a link of the URDF')
         self.base_frame, self.tool_frame = base, tip
-        self.urdf = urdf_text
+        self.urdf, self.urdf_dir = urdf_text, None
         origins, axes, types, movable = [], [], [], []
         pending = np.eye(4)   # fixed joints folded into the next movable joint's origin
         for joint in chain(joints, base, tip):
@@ -113,7 +113,9 @@ class ArmModel:
             joint_limits = beside if beside.exists() else None
         if isinstance(joint_limits, (str, Path)):
             joint_limits = load_joint_limits(joint_limits)
-        return cls(path.read_text(), base, tip, joint_limits)
+        arm = cls(path.read_text(), base, tip, joint_limits)
+        arm.urdf_dir = path.resolve().parent         # where its meshes' relative paths start
+        return arm
 
     @classmethod
     def from_urdf_string(cls, text, base='base_link', tip=None, joint_limits=None):

@@ -141,7 +141,8 @@ def default_tip(links, joints, base: str):
 
 @dataclass(frozen=True)
 class UrdfCapsule:
-    """A link's collision cylinder (read as a capsule along its axis) or sphere (a capsule of length 0), m."""
+    """A link's collision cylinder (read as a capsule along its axis) or sphere (a capsule of length 0), or the
+    capsule that bounds its box or mesh, m."""
 
     link: str
     origin: np.ndarray          # 4x4 transform link -> shape; the capsule's axis is its z
@@ -149,9 +150,11 @@ class UrdfCapsule:
     length: float
 
 
-def parse_collisions(text: str):
-    """Every ``<collision>`` cylinder and sphere of the URDF's links, as :class:`UrdfCapsule`.
-    Other shapes (box, mesh) raise ValueError: bound them with a cylinder."""
+def parse_collisions(text: str, base_dir=None):
+    """Every ``<collision>`` of the URDF's links, as :class:`UrdfCapsule`: cylinders and spheres as they are, boxes
+    and meshes bounded by the smallest capsule along their longest extent that holds every corner or vertex. A
+    mesh's file is found as ROS finds it (``package://`` in the package's share folder, ``file://``, or a path
+    relative to ``base_dir``, the URDF's folder); ValueError names a file that is not there."""
     root = ET.fromstring(text)
     out = []
     for link in root.findall('link'):
@@ -160,14 +163,93 @@ def parse_collisions(text: str):
             o = el.find('origin')
             xyz = _floats(o.get('xyz', '0 0 0'), 3, f'link {name!r} collision origin xyz') if o is not None else np.zeros(3)
             rpy = _floats(o.get('rpy', '0 0 0'), 3, f'link {name!r} collision origin rpy') if o is not None else np.zeros(3)
+            origin = origin_matrix(xyz, rpy)
             geometry = el.find('geometry')
             shape = geometry[0] if geometry is not None and len(geometry) else None
+            if shape is not None and shape.tag in ('box', 'mesh'):
+                points = (_box_corners(shape, name) if shape.tag == 'box' else _mesh_vertices(shape, name, base_dir))
+                frame, radius, length = bounding_capsule(points)
+                out.append(UrdfCapsule(name, origin @ frame, radius, length))
+                continue
             if shape is None or shape.tag not in ('cylinder', 'sphere'):
-                raise ValueError(f'link {name!r}: collision geometry must be a cylinder or a sphere, '
+                raise ValueError(f'link {name!r}: collision geometry must be a cylinder, sphere, box or mesh, '
                                  f'got {None if shape is None else shape.tag!r}')
             radius = float(shape.get('radius', 'nan'))
             length = float(shape.get('length', '0')) if shape.tag == 'cylinder' else 0.0
             if not (radius > 0 and length >= 0):
                 raise ValueError(f'link {name!r}: collision {shape.tag} needs radius > 0 (and length >= 0), m')
-            out.append(UrdfCapsule(name, origin_matrix(xyz, rpy), radius, length))
+            out.append(UrdfCapsule(name, origin, radius, length))
     return out
+
+
+def _box_corners(shape, link):
+    size = _floats(shape.get('size', ''), 3, f'link {link!r} collision box size')
+    if not np.all(size > 0):
+        raise ValueError(f'link {link!r}: a collision box needs sizes > 0, m')
+    return np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * size / 2.0
+
+
+def resolve_mesh(filename, base_dir=None):
+    """The file a URDF's mesh ``filename`` names, as ROS resolves it; ValueError naming where it looked."""
+    import os
+    from pathlib import Path
+    if filename.startswith('package://'):
+        package, _, rest = filename[len('package://'):].partition('/')
+        places = []
+        try:
+            from ament_index_python.packages import get_package_share_directory
+            places.append(Path(get_package_share_directory(package)))
+        except Exception:  # noqa: BLE001 - not in the ament index: ROS_PACKAGE_PATH next
+            pass
+        places += [Path(d) / package for d in os.environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep) if d]
+        for place in places:
+            if (place / rest).is_file():
+                return place / rest
+        raise ValueError(f'mesh {filename!r} not found: package {package!r} is '
+                         + (f'not holding {rest!r} in {", ".join(map(str, places))}' if places else
+                            'in neither the ament index nor ROS_PACKAGE_PATH'))
+    path = Path(filename[len('file://'):] if filename.startswith('file://') else filename)
+    if not path.is_absolute() and base_dir is not None:
+        path = Path(base_dir) / path
+    if not path.is_file():
+        raise ValueError(f'mesh {filename!r} not found (looked for {path})')
+    return path
+
+
+def _mesh_vertices(shape, link, base_dir):
+    import coal
+    filename = shape.get('filename', '')
+    scale = _floats(shape.get('scale', '1 1 1'), 3, f'link {link!r} collision mesh scale')
+    path = resolve_mesh(filename, base_dir)
+    try:
+        model = coal.MeshLoader().load(str(path), np.asarray(scale, float))
+    except ValueError as exc:
+        raise ValueError(f'link {link!r}: mesh {filename!r} could not be read ({str(exc).splitlines()[-2:]})') from None
+    points = np.array(model.vertices(), float)
+    if len(points) == 0:
+        raise ValueError(f'link {link!r}: mesh {filename!r} has no vertices')
+    return points
+
+
+def bounding_capsule(points):
+    """``(frame, radius, length)``: a capsule along the points' longest extent (its axis the frame's z, its middle
+    the frame's origin) that holds every point, m."""
+    points = np.asarray(points, float)
+    centre = points.mean(axis=0)
+    spread = points - centre
+    axis = np.linalg.svd(spread, full_matrices=False)[2][0] if len(points) > 1 else np.array([0.0, 0.0, 1.0])
+    t = spread @ axis
+    off = np.linalg.norm(spread - t[:, None] * axis, axis=1)
+    radius = max(float(off.max()), 1e-6)
+    # The segment as short as the caps allow: each point within the radius of its end.
+    reach = np.sqrt(np.maximum(radius ** 2 - off ** 2, 0.0))
+    hi, lo = float(np.max(t - reach)), float(np.min(t + reach))
+    if lo > hi:
+        lo = hi = 0.5 * (lo + hi)
+    frame = np.eye(4)
+    z = axis / np.linalg.norm(axis)
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    frame[:3, 0], frame[:3, 1], frame[:3, 2] = x, np.cross(z, x), z
+    frame[:3, 3] = centre + 0.5 * (lo + hi) * z
+    return frame, radius, hi - lo
