@@ -1,18 +1,24 @@
-"""The shipped UR5e and FR3 brought up as a user would (``picking-stack --arm``): a pose goal and a pick
-through the planner's actions, checked on the arm's own joint_states with its own kinematics."""
+"""The shipped UR5e and FR3 brought up as a user would (``picking-stack --arm``), a random tree of 12 apples
+hanging in the simulator: a pose goal and a pick through the planner's actions, checked on the arm's own
+joint_states with its own kinematics, and the tree harvested, counted by the simulator's fruit world."""
 
 import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
-from geometry_msgs.msg import PoseStamped
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
 from rclpy.action import ActionClient
-from rosstack import Client, ensure_rclpy, goal_result, make_pose, send_goal, stop_all
+from rosstack import BURST, Client, ensure_rclpy, goal_result, make_pose, send_goal, stop_all
 from scipy.spatial.transform import Rotation
 
 from picking_bringup import stack as launcher
+from picking_common.status import stamp_key, status_values
+from picking_core.harvest import synthetic_tree
 from picking_core.kinematics import ArmModel
 from picking_description import urdf_path
+
+TREE = (12, 1)                                                   # apples, seed
 
 FACING = Rotation.from_euler('y', 90, degrees=True).as_quat()     # the tool's z along +x
 
@@ -28,8 +34,12 @@ def stamped(xyz, quat):
 def arm(request, tmp_path_factory):
     name = request.param
     ensure_rclpy()
-    stack = launcher.Stack(f'/{name}', tmp_path_factory.mktemp(name), arm=name)
+    stack = launcher.Stack(f'/{name}', tmp_path_factory.mktemp(name), arm=name,
+                           args={'picking-sim': ['-p', f'tree:=synthetic {TREE[0]} {TREE[1]}']})
     client = Client(f'/{name}')
+    client.fruit_events = []
+    client.create_subscription(DiagnosticStatus, 'fruit_events', client.fruit_events.append, BURST)
+    client.pub_harvest = client.create_publisher(PoseArray, 'harvest_targets', BURST)
     try:
         client.wait_ready(60.0)
         actions = {n: ActionClient(client, kind, n) for n, kind in (('pick', Pick), ('move_to_pose', MoveToPose))}
@@ -54,6 +64,24 @@ def test_joint_states_name_the_arms_own_joints(arm):
     _, model, client, _ = arm
     client.wait_for(lambda: client.states, 10.0, 'joint_states')
     assert tuple(client.states[-1][1].name) == model.all_joint_names
+
+
+def test_the_tree_is_harvested_into_the_box_by_the_simulators_count(arm):
+    _, _, client, _ = arm
+    n, seed = TREE
+    tree = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat())
+                            for T in synthetic_tree(n, seed)])
+    tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
+    key = stamp_key(tree.header.stamp)
+    client.send(client.pub_harvest, tree)
+    said = lambda: [status_values(m) for _, m in client.planner_status if status_values(m).get('goal') == key]  # noqa: E731
+    end = client.wait_for(lambda: next((v for v in said() if v.get('state') in (
+        'succeeded', 'aborted', 'refused', 'superseded', 'canceled')), None), 180.0, 'the end of the harvest')
+    assert end['state'] == 'succeeded', end
+    client.wait_for(lambda: client.fruit_events and int(status_values(client.fruit_events[-1])['in_the_box']) == n,
+                    5.0, f'{n} apples in the box by the simulator\'s count')
+    picked = [v for v in said() if v.get('apple_state') == 'picked']
+    assert len(picked) == n and all(v['verified'] == 'True' for v in picked), picked
 
 
 def test_a_pose_goal_reaches_its_pose(arm):

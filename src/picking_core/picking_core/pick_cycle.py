@@ -35,6 +35,11 @@ HOME_POSITIONS = (0.0, 0.2, 1.6, 0.0, -0.23, 0.0)
 GRIPPER_OPEN = 0.09
 #: The gripper's joint in the pick cycle's plans (its finger opening, m).
 GRIPPER_JOINT = 'gripper_joint'
+
+
+def gripper_column(arm):
+    """The name of a plan's finger-opening column: the arm's gripper joint, else :data:`GRIPPER_JOINT`."""
+    return arm.gripper_joint or GRIPPER_JOINT
 LIFT_METHODS = ('line', 'arc')
 #: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
 BLEND_SPEEDS = (0.0, 0.3, 0.6, 0.9)
@@ -499,7 +504,8 @@ class PickCycle:
         plan = self.planner.join(parts, 'pick', cart)
         gripper, events = self._gripper(plan, gripper_start)
         whole = trajectory.stack([plan.trajectory, gripper])
-        return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + (GRIPPER_JOINT,), events)
+        return Plan(whole, 'pick', plan.segments, plan.cartesian, self.arm.joint_names + (gripper_column(self.arm),),
+                    events)
 
     def _home_from_box(self, start, through=None, mover=None):
         """``(label, method, traj, path)`` of each part from rest in the box back home: straight up out of
@@ -642,9 +648,9 @@ class PickCycle:
     def _gripper_time(self, wanted):
         """A dwell long enough for the fingers to move within their limits (quintic peaks)."""
         names = self.arm.all_joint_names
-        if 'gripper_joint' not in names:
+        if self.arm.gripper_joint is None:
             return wanted
-        i = names.index('gripper_joint')
+        i = names.index(self.arm.gripper_joint)
         _, _, vmax, amax = self.arm.all_limits
         travel = self.s.gripper_open - self.s.gripper_closed
         need = max(1.875 * travel / vmax[i], np.sqrt(5.78 * travel / amax[i]) if np.isfinite(amax[i]) else 0.0)

@@ -28,7 +28,7 @@ from picking_common.joint_state import reorder, seconds
 from picking_common.status import Level, stamp_key, status
 from picking_common.topics import BURST, RELIABLE, LatestMessage
 from picking_core.goals.gripper import GripperSchedule, gripper_moves, judge
-from picking_core.pick_cycle import GRIPPER_JOINT
+from picking_core.pick_cycle import gripper_column
 
 RESULT_WORDS = {GoalStatus.STATUS_SUCCEEDED: 'succeeded', GoalStatus.STATUS_CANCELED: 'canceled'}
 #: s between two questions to a controller that has not answered the planner yet.
@@ -134,7 +134,7 @@ class ControllerLink:
 
     def _opening(self, names, positions):
         """The gripper's opening: its action's newest word where it has one, else its joint in ``names``."""
-        return self.opening if self.gripper is not None else _gripper(names, positions)
+        return self.opening if self.gripper is not None else _gripper(names, positions, gripper_column(self.node.arm))
 
     def reference(self):
         """The controller's newest reference ``((q, qd, qdd), gripper)`` if fresh, else None: picking-controller's
@@ -168,9 +168,10 @@ class ControllerLink:
         to the runner."""
         stamp_ns = self._origin_ns + int(round(stamp * 1e9)) if stamp else 0
         names = list(flight.names)
-        if self.gripper is not None and GRIPPER_JOINT in names:
+        column = gripper_column(self.node.arm)
+        if self.gripper is not None and column in names:
             # The arm's controller gets the arm's joints; the opening column becomes the gripper's commands.
-            g = names.index(GRIPPER_JOINT)
+            g = names.index(column)
             keep = [i for i in range(len(names)) if i != g]
             self.schedule.plan(flight.serial, stamp or self.now(), gripper_moves(points[0], points[1][:, g]))
             names = [names[i] for i in keep]
@@ -331,8 +332,8 @@ def _ns(stamp):
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def _gripper(names, positions):
-    if GRIPPER_JOINT not in names:
+def _gripper(names, positions, joint):
+    if joint not in names:
         return None
-    g = positions[list(names).index(GRIPPER_JOINT)]
+    g = positions[list(names).index(joint)]
     return float(g) if np.isfinite(g) else None

@@ -20,7 +20,6 @@ from picking_common.vision import cdr_agrees, detections_cdr, detections_msg
 from picking_core.camera import CameraSettings, DepthCamera, look_at
 from picking_core.fruit import Fate, Wind
 from picking_core.kinematics.capsules import ArmCapsules
-from picking_core.pick_cycle import HOME_POSITIONS
 
 from .orchard import ArmSamples, Frames, fruit_world, tree_centres
 
@@ -72,7 +71,9 @@ class FruitSim:
     def from_parameters(cls, node, p, scene):
         """The node's apples and camera from its parameters, or None without a ``tree`` (ValueError: a bad tree
         or camera)."""
-        centres, tree_scene = tree_centres(p['tree'], node.arm, scene, HOME_POSITIONS)
+        # (An orchard's branches keep clear of the arm where it starts.)
+        home = tuple(p['initial_positions'][:node.arm.dof])
+        centres, tree_scene = tree_centres(p['tree'], node.arm, scene, home)
         if not p['tree'].strip():
             return None
         if tree_scene is not None:

@@ -40,7 +40,6 @@ from picking_common.topics import BURST, LATCHED, LatestMessage
 from picking_core.collision import CollisionChecker, Scene
 from picking_core.kinematics import ArmModel
 from picking_core.kinematics.capsules import ArmCapsules
-from picking_core.pick_cycle import GRIPPER_JOINT
 from picking_description import default_urdf, scene_path
 
 from .fruit_node import FruitSim
@@ -127,7 +126,7 @@ class SimNode(Node):
         self.fruit = FruitSim.from_parameters(self, p, scene)
         if self.fruit is not None and self.fruit.tree_scene is not None:
             scene = self.fruit.tree_scene             # a tree among branches: they are in the world too
-        if self.fruit is not None and GRIPPER_JOINT in self.names:
+        if self.fruit is not None and self.arm.gripper_joint is not None:
             self.fruit.stop_fingers = self._stop_fingers
         self.witness = Witness(CollisionChecker(ArmCapsules.from_arm(self.arm), scene, clearance=0.0,
                                                 self_check=False))
@@ -212,7 +211,7 @@ class SimNode(Node):
         """The fingers close no further than ``width`` (m; 0: freely): they rest on the apple between them, and
         the measured opening shows what they hold."""
         with self.lock:
-            self.servo.stop_at(self.names.index(GRIPPER_JOINT), width if width > 0 else -np.inf)
+            self.servo.stop_at(self.names.index(self.arm.gripper_joint), width if width > 0 else -np.inf)
 
     def _say_stalled(self, worst, count):
         more = f' (the longest of {count} stalls since the last report)' if count > 1 else ''

@@ -88,6 +88,10 @@ class ArmModel:
         in_chain = set(self.joint_names)
         extra = [j for j in joints.values() if j.type != 'fixed' and j.name not in in_chain]
         self.extra_joint_names = tuple(j.name for j in extra)
+        #: The gripper's joint (its opening): the one movable joint off the chain, or among several the one named
+        #: gripper_joint; None when there is none to tell.
+        self.gripper_joint = (extra[0].name if len(extra) == 1 else
+                              'gripper_joint' if 'gripper_joint' in self.extra_joint_names else None)
         self._extra = {
             'lower': np.array([j.lower for j in extra]), 'upper': np.array([j.upper for j in extra]),
             'velocity': np.array([j.velocity for j in extra]), 'acceleration': np.full(len(extra), np.inf)}
