@@ -127,3 +127,40 @@ def test_a_harvest_picks_every_apple_counted_by_the_gripper(arm):
     assert len(picked) == 3 and all(str(s.get('verified')) in ('True', 'true', '1') for s in picked), picked
     assert arm_only(jtc, since)
     assert len(gripper.commands) - commands >= 6          # a close and an open for each apple
+
+
+def test_picking_controller_serves_the_gripper_action_too(tmp_path):
+    """The project's own stack as one configuration of the standard route: the planner sends the arm's joints to
+    picking-controller's follow_joint_trajectory and closes the fingers on its gripper_cmd; a harvest of a tree
+    hanging in the simulator puts every apple in the box (the fingers stall on each apple, the planner takes the
+    stall as the grasp and judges each apple by the gripper's word)."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rosstack import running_stack
+    from trajectory_msgs.msg import JointTrajectory
+
+    from picking_core.harvest import synthetic_tree
+    n, seed = 3, 0
+    with running_stack('/ownstd', tmp_path, sim_args=('-p', f'tree:=synthetic {n} {seed}'),
+                       planner_args=('-p', 'gripper_action:=gripper_cmd')) as (stack, client):
+        events, sent = [], []
+        client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
+        client.create_subscription(JointTrajectory, 'planned_trajectory', sent.append, BURST)
+        pub = client.create_publisher(PoseArray, 'harvest_targets', BURST)
+        tree = PoseArray(poses=[make_pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat())
+                                for T in synthetic_tree(n, seed)])
+        tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
+        key = stamp_key(tree.header.stamp)
+        client.send(pub, tree)
+        said = lambda: [status_values(m) for _, m in client.planner_status if status_values(m).get('goal') == key]  # noqa: E731
+        end = client.wait_for(lambda: next((v for v in said() if v.get('state') in (
+            'succeeded', 'aborted', 'refused', 'superseded', 'canceled')), None), 120.0, 'the end of the harvest')
+        assert end['state'] == 'succeeded', end
+        client.wait_for(lambda: events and int(status_values(events[-1])['in_the_box']) == n, 5.0,
+                        f'{n} apples in the box by the simulator\'s count')
+        picked = [v for v in said() if v.get('apple_state') == 'picked']
+        # (A goal sent again has its statuses said again: each apple counts once.)
+        assert {v['apple'] for v in picked} == {str(k) for k in range(n)}, picked
+        assert all(v['verified'] == 'True' for v in picked), picked
+        # Every trajectory sent named the arm's joints only; the gripper took every command.
+        assert sent and all('gripper_joint' not in m.joint_names for m in sent), [m.joint_names for m in sent]
+        assert 'gripper command refused' not in stack.controller.output()

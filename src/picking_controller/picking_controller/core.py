@@ -22,6 +22,7 @@ from picking_core.trajectory import brake, hold
 
 from .events import Event, LateTrajectory, Mode, Tolerances
 from .goals import ErrorCode, JointTolerances, Outcome
+from .gripper import GripperChannel
 from .limiting import CommandGuard
 from .monitoring import LATE_FEEDBACK, Tracker
 from .schedule import Entry, Schedule
@@ -76,9 +77,14 @@ class ControllerCore:
     """
 
     def __init__(self, names, lower, upper, max_velocity, max_acceleration, tolerances=Tolerances(),
-                 optional=(), stall_limit=0.05, max_jerk=None):
+                 optional=(), stall_limit=0.05, max_jerk=None, gripper=None):
         self.limits = Limits.of(names, lower, upper, max_velocity, max_acceleration, max_jerk, optional)
         self.names = list(names)
+        # The gripper's own channel (a GripperCommand action drives it), when the arm has one.
+        self.gripper = None if gripper is None else GripperChannel(
+            self.names.index(gripper), self.limits.lower[self.names.index(gripper)],
+            self.limits.upper[self.names.index(gripper)], self.limits.max_velocity[self.names.index(gripper)],
+            self.limits.max_acceleration[self.names.index(gripper)])
         self.splicer = Splicer(self.limits, Validator(self.limits))
         self.guard = CommandGuard(self.limits)
         self.schedule = Schedule()
@@ -315,9 +321,31 @@ class ControllerCore:
         events, self._pending = self._pending, []
         if ref is None:
             return None, events
+        finger = self.gripper.reference(now) if self.gripper is not None else None
+        if finger is not None:
+            ref = tuple(np.array(x, float) for x in ref)
+            for x, value in zip(ref, finger):
+                x[self.gripper.index] = value
         out, limited = self.guard.hold(ref, now, self.schedule.active)
         self.tracker.history.record(now, out[0], out[1])
         return out, events + limited
+
+    # -- the gripper on its own action ------------------------------------------------------------
+    def command_gripper(self, target, now):
+        """A GripperCommand to ``target``: the gripper's reference moves there from where it is commanded now
+        (ValueError: beyond its limits, or no gripper)."""
+        if self.gripper is None:
+            raise ValueError('this arm has no gripper joint')
+        finger = self.gripper.reference(now)
+        ref = self.reference(now) if finger is None else None
+        current = finger[0] if finger is not None else (
+            float(ref[0][self.gripper.index]) if ref is not None else float(self.tracker.q[self.gripper.index]))
+        self.gripper.command(target, now, current)
+
+    def measured_gripper(self):
+        """The gripper's newest measured opening, or None."""
+        q = self.tracker.q
+        return None if q is None or self.gripper is None else float(q[self.gripper.index])
 
     # -- the measured state ------------------------------------------------------------------
     def on_state(self, q, qd, stamp, now):

@@ -20,7 +20,7 @@ import threading
 import time
 
 import numpy as np
-from control_msgs.action import FollowJointTrajectory
+from control_msgs.action import FollowJointTrajectory, GripperCommand
 from control_msgs.msg import JointTrajectoryControllerState
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
@@ -77,7 +77,8 @@ class ControllerNode(Node):
         extra = len(self.arm.extra_joint_names)
         self.core = ControllerCore(self.arm.all_joint_names, *self.arm.all_limits, _tolerances(p),
                                    optional=self.arm.extra_joint_names, stall_limit=p['stall_limit'],
-                                   max_jerk=np.concatenate([self.arm.max_jerk, np.full(extra, np.inf)]))
+                                   max_jerk=np.concatenate([self.arm.max_jerk, np.full(extra, np.inf)]),
+                                   gripper=self.arm.gripper_joint)
         self.lock = threading.Lock()
         self.add_on_set_parameters_callback(self._on_parameters)
         self.pub_cmd = self.create_publisher(JointState, 'joint_commands', RELIABLE)
@@ -109,6 +110,16 @@ class ControllerNode(Node):
         self.action = ActionServer(self, FollowJointTrajectory, 'follow_joint_trajectory',
                                    execute_callback=self._execute, goal_callback=self._on_goal,
                                    cancel_callback=self._cancel, result_timeout=RESULT_TIMEOUT)
+        # The gripper on a GripperCommand action of its own, as gripper_action_controller serves it (an alternative
+        # to moving it in the trajectories; the planner's gripper_action parameter chooses).
+        self._gripper_goal, self._gripper_answers = None, collections.deque()
+        if self.core.gripper is not None:
+            self.gripper_action = ActionServer(self, GripperCommand, 'gripper_cmd',
+                                               execute_callback=self._execute_gripper,
+                                               cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                               result_timeout=RESULT_TIMEOUT)
+            self._gripper_settle = self.create_guard_condition(self._settle_gripper)
+            self._gripper_feedback = self.create_timer(1.0 / p['action_monitor_rate'], self._publish_gripper_feedback)
         # The state a joint trajectory controller publishes (its reference, the measurement, their difference), for
         # clients written for ros2_controllers; joint_commands carries the same reference at the loop's rate.
         self.pub_state = self.create_publisher(JointTrajectoryControllerState, 'controller_state', RELIABLE)
@@ -214,6 +225,9 @@ class ControllerNode(Node):
         event.values.setdefault('trajectory', trajectory)
         if event.level == 'OK':                  # when it went on the schedule, on the ROS clock (s, as text)
             event.values['spliced_at'] = f'{self.now():.6f}'
+            if self.core.gripper is not None and self.arm.gripper_joint in list(args[0]):
+                with self.lock:
+                    self.core.gripper.release()  # a trajectory that names the gripper drives it again
         self._report([event])
 
     # -- the follow_joint_trajectory action ---------------------------------------------
@@ -226,6 +240,64 @@ class ControllerNode(Node):
             self._report([Event('ERROR', f'goal rejected: {exc}')])
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
+
+    async def _execute_gripper(self, handle):
+        """A GripperCommand: the gripper's reference moves to the target; the goal ends when the fingers are there,
+        or stalled short of it (see :class:`~.gripper.GripperChannel`); a newer command aborts it."""
+        done = Future()
+        with self.lock:
+            try:
+                self.core.command_gripper(handle.request.command.position, self.now())
+            except ValueError as exc:
+                self.get_logger().warning(f'gripper command refused: {exc}')
+                done = None
+            else:
+                if self._gripper_goal is not None:
+                    self._gripper_answers.append((self._gripper_goal, None))
+                self._gripper_goal = (handle, done)
+        if done is None:
+            handle.abort()
+            return GripperCommand.Result(position=self.core.measured_gripper() or 0.0)
+        if self._gripper_answers:
+            self._gripper_settle.trigger()
+        answer = await done
+        result = GripperCommand.Result(position=self.core.measured_gripper() or 0.0)
+        if answer is None:                               # preempted by a newer command
+            handle.abort()
+        elif answer == 'canceled':
+            handle.canceled()
+        else:
+            result.position, result.stalled, result.reached_goal = answer.position, answer.stalled, answer.reached
+            handle.succeed() if answer.word == 'succeeded' else handle.abort()
+        return result
+
+    def _judge_gripper(self, now):
+        """From the control loop: the running gripper command's end, if it came (settled in the executor)."""
+        goal = self._gripper_goal
+        if goal is None:
+            return
+        with self.lock:
+            measured = self.core.measured_gripper()
+            if goal[0].is_cancel_requested:
+                self.core.gripper.cancel(now, measured if measured is not None else self.core.gripper.target)
+                answer = 'canceled'
+            else:
+                answer = self.core.gripper.judge(now, measured) if measured is not None else None
+        if answer is not None:
+            self._gripper_goal = None
+            self._gripper_answers.append((goal, answer))
+            self._gripper_settle.trigger()
+
+    def _settle_gripper(self):
+        while self._gripper_answers:
+            (_, done), answer = self._gripper_answers.popleft()
+            if not done.done():
+                done.set_result(answer)
+
+    def _publish_gripper_feedback(self):
+        goal, measured = self._gripper_goal, self.core.measured_gripper()
+        if goal is not None and measured is not None:
+            goal[0].publish_feedback(GripperCommand.Feedback(position=measured))
 
     def _publish_state(self):
         newest, state = self._newest, self._last_state
@@ -337,6 +409,7 @@ class ControllerNode(Node):
             events += self.core.tick(now)
             ref, limited = self.core.command(now)
             events += limited
+        self._judge_gripper(now)
         if events:
             self._report(events)
         if later:                                # its sender learns at once how late the plan now runs
