@@ -195,12 +195,10 @@ def resolve_mesh(filename, base_dir=None):
     from pathlib import Path
     if filename.startswith('package://'):
         package, _, rest = filename[len('package://'):].partition('/')
-        places = []
-        try:
-            from ament_index_python.packages import get_package_share_directory
-            places.append(Path(get_package_share_directory(package)))
-        except Exception:  # noqa: BLE001 - not in the ament index: ROS_PACKAGE_PATH next
-            pass
+        # The ament index (a package is registered by a marker file under its prefix), then ROS_PACKAGE_PATH.
+        prefixes = [Path(d) for d in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if d]
+        places = [p / 'share' / package for p in prefixes
+                  if (p / 'share' / 'ament_index' / 'resource_index' / 'packages' / package).exists()]
         places += [Path(d) / package for d in os.environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep) if d]
         for place in places:
             if (place / rest).is_file():
