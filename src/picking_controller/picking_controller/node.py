@@ -119,7 +119,9 @@ class ControllerNode(Node):
                                                cancel_callback=lambda _: CancelResponse.ACCEPT,
                                                result_timeout=RESULT_TIMEOUT)
             self._gripper_settle = self.create_guard_condition(self._settle_gripper)
+            # Runs only while a gripper goal does: an idle controller's executor stays asleep.
             self._gripper_feedback = self.create_timer(1.0 / p['action_monitor_rate'], self._publish_gripper_feedback)
+            self._gripper_feedback.cancel()
         # The state a joint trajectory controller publishes (its reference, the measurement, their difference), for
         # clients written for ros2_controllers; joint_commands carries the same reference at the loop's rate.
         self.pub_state = self.create_publisher(JointTrajectoryControllerState, 'controller_state', RELIABLE)
@@ -255,6 +257,7 @@ class ControllerNode(Node):
                 if self._gripper_goal is not None:
                     self._gripper_answers.append((self._gripper_goal, None))
                 self._gripper_goal = (handle, done)
+                self._gripper_feedback.reset()
         if done is None:
             handle.abort()
             return GripperCommand.Result(position=self.core.measured_gripper() or 0.0)
@@ -296,7 +299,9 @@ class ControllerNode(Node):
 
     def _publish_gripper_feedback(self):
         goal, measured = self._gripper_goal, self.core.measured_gripper()
-        if goal is not None and measured is not None:
+        if goal is None:
+            self._gripper_feedback.cancel()
+        elif measured is not None:
             goal[0].publish_feedback(GripperCommand.Feedback(position=measured))
 
     def _publish_state(self):
