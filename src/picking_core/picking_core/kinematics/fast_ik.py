@@ -45,13 +45,17 @@ def pack(solver):
 
 
 class Bound:
-    """The kernels bound to one arm: ``one(pose, seed, q_out) -> status`` and
-    ``many(poses, seeds, q_out, status_out)``."""
+    """Kernels bound to one arm's packed ``model``: ``one(pose, seed, q_out) -> status`` and
+    ``many(poses, seeds, q_out, status_out)`` (every compiled IK module has this pair)."""
 
-    def __init__(self, solver):
-        model = pack(solver)
+    def __init__(self, model, solve, solve_many):
         self.one = functools.partial(solve, *model)
         self.many = functools.partial(solve_many, *model)
+
+
+def bind(solver):
+    """This module's kernels bound to ``solver``'s arm."""
+    return Bound(pack(solver), solve, solve_many)
 
 
 @njit(cache=True, nogil=True, error_model='numpy')

@@ -19,7 +19,6 @@ joint's position (x, y, z) and the chain's length.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -27,7 +26,7 @@ from numba import njit
 
 from .fast_fk import _chain_block
 from .fast_fk import pack as pack_chain
-from .fast_ik import NO_SOLUTION, OK, OUT_OF_REACH, check_inputs
+from .fast_ik import NO_SOLUTION, OK, OUT_OF_REACH, Bound, check_inputs
 
 TOLERANCE = 1e-10
 MAX_STEP = 0.5          # rad (m) a joint moves at most per step: far starts do not overshoot
@@ -43,14 +42,9 @@ def pack(solver):
     return (*pack_chain(arm), limits, settings)
 
 
-class Bound:
-    """The kernels bound to one arm: ``one(pose, seed, q_out) -> status`` and
-    ``many(poses, seeds, q_out, status_out)``."""
-
-    def __init__(self, solver):
-        model = pack(solver)
-        self.one = functools.partial(solve, *model)
-        self.many = functools.partial(solve_many, *model)
+def bind(solver):
+    """This module's kernels bound to ``solver``'s arm (:class:`.fast_ik.Bound`)."""
+    return Bound(pack(solver), solve, solve_many)
 
 
 @njit(cache=True, nogil=True, error_model='numpy')

@@ -15,13 +15,12 @@ arrays (see :func:`pack`):
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 from numba import njit
 
-from .fast_ik import BEYOND_LIMITS, OK, OUT_OF_REACH, check_inputs, image
+from .fast_ik import BEYOND_LIMITS, OK, OUT_OF_REACH, Bound, check_inputs, image
 
 _SINGULAR = 1e-9      # |sin q5| below which the wrist is singular (the vectorised path's)
 
@@ -34,14 +33,9 @@ def pack(solver):
             np.ascontiguousarray(solver.tool_inv), limits)
 
 
-class Bound:
-    """The kernels bound to one arm: ``one(pose, seed, q_out) -> status`` and
-    ``many(poses, seeds, q_out, status_out)``."""
-
-    def __init__(self, solver):
-        model = pack(solver)
-        self.one = functools.partial(solve, *model)
-        self.many = functools.partial(solve_many, *model)
+def bind(solver):
+    """This module's kernels bound to ``solver``'s arm (:class:`.fast_ik.Bound`)."""
+    return Bound(pack(solver), solve, solve_many)
 
 
 SIGNATURE = ('int64(float64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], '

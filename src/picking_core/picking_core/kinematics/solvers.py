@@ -42,6 +42,25 @@ def pick_solver(arm):
     return NumericSolver(arm)
 
 
+def _test_poses(arm, n=64):
+    """Random configurations within ``arm``'s limits, and their tool poses: a solver's self-test."""
+    rng = np.random.default_rng(12345)
+    lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
+    hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
+    Q = rng.uniform(lo, hi, (n, arm.dof))
+    return Q, arm.joint_frames(Q)[:, -1]
+
+
+def _confirm(arm, q, T, position_only):
+    """Each of ``q`` (N, dof) puts the tool at its pose ``T`` (position only, for an arm that solves no more)."""
+    F = arm.joint_frames(q)[:, -1]
+    pos_err = np.linalg.norm(F[:, :3, 3] - T[:, :3, 3], axis=1)
+    if position_only:
+        return pos_err < 1e-7
+    rot_err = np.linalg.norm(F[:, :3, :3] - T[:, :3, :3], axis=(1, 2))   # ~ sqrt(2) * angle
+    return (pos_err < 1e-7) & (rot_err < 1e-7)
+
+
 def _is(v, ref):
     return np.allclose(v, ref, atol=_TOL)
 
@@ -124,13 +143,8 @@ class _ClosedForm:
     def quick_reject(self, T):
         return self.reach_reasons(T[None])[0]
 
-    def _test_poses(self, n=64):
-        """Random configurations within the limits, and their tool poses."""
-        rng = np.random.default_rng(12345)
-        lo = np.where(np.isfinite(self.arm.lower), self.arm.lower, -np.pi)
-        hi = np.where(np.isfinite(self.arm.upper), self.arm.upper, np.pi)
-        Q = rng.uniform(lo, hi, (n, self.arm.dof))
-        return Q, self.arm.joint_frames(Q)[:, -1]
+    def _test_poses(self):
+        return _test_poses(self.arm)
 
     def self_test(self):
         """IK of FK of random configurations within the limits gives poses back exactly."""
@@ -149,7 +163,7 @@ class _ClosedForm:
         fast_ik = load(f'{__package__}.{self.kernel}', 'the compiled IK', 'IK runs the vectorised closed form')
         if fast_ik is None:
             return None
-        bound = fast_ik.Bound(self)
+        bound = fast_ik.bind(self)
         Q, T = self._test_poses()
         T = np.ascontiguousarray(T)
         seeds = np.roll(Q, 1, axis=0)
@@ -194,12 +208,7 @@ class _ClosedForm:
         return [c[np.isfinite(c).all(axis=1)] if r else c[:0] for c, r in zip(cand, reach_ok)]
 
     def _confirm(self, q, T):
-        F = self.arm.joint_frames(q)[:, -1]
-        pos_err = np.linalg.norm(F[:, :3, 3] - T[:, :3, 3], axis=1)
-        if self.position_only:
-            return pos_err < 1e-7
-        rot_err = np.linalg.norm(F[:, :3, :3] - T[:, :3, :3], axis=(1, 2))   # ~ sqrt(2) * angle
-        return (pos_err < 1e-7) & (rot_err < 1e-7)
+        return _confirm(self.arm, q, T, self.position_only)
 
 
 class Elbow3R(_ClosedForm):
@@ -496,19 +505,16 @@ class NumericSolver:
         kernel = load(f'{__package__}.fast_ik_numeric', 'the compiled numeric IK', 'IK runs in numpy')
         if kernel is None:
             return None
-        bound = kernel.Bound(self)
-        Q, T = _ClosedForm._test_poses(self)
+        bound = kernel.bind(self)
+        Q, T = _test_poses(self.arm)
         q, status = np.empty_like(Q), np.empty(len(Q), dtype=np.int64)
         bound.many(np.ascontiguousarray(T), np.ascontiguousarray(np.roll(Q, 1, axis=0)), q, status)
         ok = status == kernel.OK
-        if ok.mean() < 0.9 or not self._confirm(q[ok], T[ok]).all():
+        if ok.mean() < 0.9 or not _confirm(self.arm, q[ok], T[ok], self.position_only).all():
             warnings.warn('the compiled numeric IK failed its self-test: IK runs in numpy', RuntimeWarning,
                           stacklevel=2)
             return None
         return bound
-
-    def _confirm(self, q, T):
-        return _ClosedForm._confirm(self, q, T)
 
     def quick_reject(self, T):
         d = float(np.linalg.norm(T[:3, 3] - self.base_point))
