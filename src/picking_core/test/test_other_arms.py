@@ -266,3 +266,40 @@ def test_mesh_and_box_links_are_bounded_by_capsules_that_hold_them(tmp_path, mon
     missing = urdf.replace('package://my_arm/meshes/forearm.stl', 'package://my_arm/meshes/gone.stl')
     with pytest.raises(ValueError, match="mesh 'package://my_arm/meshes/gone.stl' not found"):
         parse_collisions(missing, tmp_path)
+
+
+def test_a_box_link_is_checked_as_the_box_not_its_bounding_capsule(tmp_path):
+    """A flat plate as the forearm: an obstacle beside its face but inside its capsule is clear, one within the
+    clearance of the face is a contact, in the narrow phase (coal's hull) and in the whole-trajectory check."""
+    from picking_core.collision import CollisionChecker
+    from picking_core.collision.scene import Scene, rod
+    from picking_core.kinematics.capsules import ArmCapsules
+    urdf = urdf_path('ur5e').read_text()
+    forearm = ('<collision><origin xyz="-0.1961 0 0.007" rpy="0 1.5707963267948966 0"/><geometry><cylinder '
+               'radius="0.045" length="0.3922"/></geometry></collision>')
+    plate = ('<collision><origin xyz="-0.1961 0 0.007" rpy="0 1.5707963267948966 0"/><geometry>'
+             '<box size="0.05 0.3 0.3922"/></geometry></collision>')
+    (tmp_path / 'arm.urdf').write_text(urdf.replace(forearm, plate))
+    arm = kinematics.ArmModel.from_urdf(tmp_path / 'arm.urdf', joint_limits=urdf_path('ur5e').with_name(
+        'ur5e_joint_limits.yaml'))
+    capsules = ArmCapsules.from_arm(arm)
+    k = capsules.links.index('forearm_link')
+    assert capsules.radius[k] == pytest.approx(np.hypot(0.025, 0.15), abs=1e-6)     # the plate's half diagonal
+    q = np.array([3.14, -2.04, 2.02, 0.02, 1.57, -1.57])
+    T = capsules.frames(q)[0, k]
+    points = capsules.hulls[k] @ T[:3, :3].T + T[:3, 3]
+    centre = points.mean(axis=0)
+    # The plate's thin direction: its smallest extent through the centre.
+    normal = np.linalg.svd(points - centre)[2][-1]
+    along = np.linalg.svd(points - centre)[2][0]
+
+    def wire_at(gap):                                # a thin wire across the plate, ``gap`` m off its face
+        middle = centre + normal * (0.025 + 0.003 + gap)
+        return Scene((rod('wire', 'wire', middle - 0.5 * along, middle + 0.5 * along, 0.003),))
+
+    for gap, touching in ((0.05, False), (0.01, True)):
+        checker = CollisionChecker(capsules, wire_at(gap), clearance=0.02, self_check=False)
+        assert 0.05 < capsules.radius[k] + 0.02 - (0.025 + 0.003)       # the bounding capsule would touch both
+        assert bool(checker.colliding(q[None])[0]) is touching, gap
+        found = checker.contacts(q[None])[0]
+        assert (found is not None and found.link == 'forearm_link') is touching

@@ -3,7 +3,8 @@
 The broad phase is numpy over every sample at once: each link capsule's box against each
 obstacle's box, and its spheres against the canopy's distance field. Only the pairs it cannot
 clear go to coal's narrow phase, in time order, so the first contact is found without checking
-the rest. Self-collision compares the arm's own capsules in closed form
+the rest; there a link given as a box or a mesh is its convex hull, its capsule only the bound the
+broad phase clears with. Self-collision compares the arm's own capsules in closed form
 (:func:`~picking_core.kinematics.capsules.capsule_distances`).
 """
 
@@ -16,7 +17,7 @@ import coal
 import numpy as np
 
 from ..kinematics.capsules import ArmCapsules, capsule_distances, segment_distances
-from .scene import Scene, frames_along, transform
+from .scene import Scene, convex_hull, frames_along, transform
 
 #: m: how near an obstacle a link may come, unless told.
 CLEARANCE = 0.02
@@ -92,6 +93,9 @@ class CollisionChecker:
         self.pairs = self._self_pairs() if self_check else np.zeros((0, 2), int)
         # Links that move: the base's own capsule stands where the arm is mounted, on the platform.
         self.moving = np.nonzero(capsules.frame > 0)[0]
+        # A box's or a mesh's hull for the narrow phase; its capsule, a bound, decides nothing as too near.
+        self.hulls = [None if h is None else convex_hull(h) for h in capsules.hulls] or [None] * len(capsules.links)
+        self.bounds_only = np.array([h is not None for h in self.hulls], bool)
 
     def replaced(self, scene=None, canopy=None, clearance=None):
         """The same arm's checker with another scene, canopy or clearance (the self-collision pairs,
@@ -169,7 +173,7 @@ class CollisionChecker:
         triples = triples[~certain]
         triples = triples[~hit[triples[:, 0]]]
         if len(triples):
-            frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
+            frames, lengths = self._placed(q, seg, triples)
             for m, (n, k, o) in enumerate(triples):
                 if not hit[n]:
                     hit[n] = self._narrow(frames[m], lengths[m], k, o, n, 0.0, allowed) is not None
@@ -184,7 +188,7 @@ class CollisionChecker:
         out = [[c] if c is not None else [] for c in self._self_contacts(seg, times)]
         triples, _ = self._candidates(seg)
         if len(triples):
-            frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
+            frames, lengths = self._placed(q, seg, triples)
             for m, (n, k, o) in enumerate(triples):
                 contact = self._narrow(frames[m], lengths[m], k, o, n, times[n], [])
                 if contact is not None:
@@ -201,7 +205,7 @@ class CollisionChecker:
         triples, _ = self._candidates(seg)
         if not len(triples):
             return found
-        frames, lengths = frames_along(seg[triples[:, 0], triples[:, 1], 0], seg[triples[:, 0], triples[:, 1], 1])
+        frames, lengths = self._placed(q, seg, triples)
         for m, (n, k, o) in enumerate(triples):                           # in time order
             if first and n > earliest:
                 break
@@ -248,6 +252,7 @@ class CollisionChecker:
         if not found:
             return np.zeros((0, 3), int), np.zeros(0, bool)
         triples, certain = np.concatenate(found), np.concatenate(sure)
+        certain &= ~self.bounds_only[triples[:, 1]]
         order = np.argsort(triples[:, 0], kind='stable')
         return triples[order], certain[order]
 
@@ -267,10 +272,20 @@ class CollisionChecker:
         surely = (upper < reach - 1e-9).any(axis=-1)
         return maybe, surely
 
+    def _placed(self, q, seg, triples):
+        """Where the narrow phase places each ``(sample, link, obstacle)`` triple's shape: ``(frames, lengths)``,
+        a capsule's frame along its segment, or a hull's frame (the frame its link moves with)."""
+        n, k = triples[:, 0], triples[:, 1]
+        frames, lengths = frames_along(seg[n, k, 0], seg[n, k, 1])
+        hull = self.bounds_only[k]
+        if hull.any():
+            frames[hull] = self.capsules.frames(q[n[hull]])[np.arange(hull.sum()), k[hull]]
+        return frames, lengths
+
     def _narrow(self, frame, length, k, o, n, t, allowed):
-        """coal's answer for capsule ``k`` (placed at ``frame``, ``length`` m) against obstacle ``o``
-        (-1: the canopy)."""
-        shape = coal.Capsule(float(self.capsules.radius[k]), max(float(length), 1e-9))
+        """coal's answer for link shape ``k`` (placed at ``frame``; a capsule ``length`` m long, or a hull)
+        against obstacle ``o`` (-1: the canopy)."""
+        shape = self.hulls[k] or coal.Capsule(float(self.capsules.radius[k]), max(float(length), 1e-9))
         if o < 0:
             other, pose, name = self.canopy.octree, coal.Transform3s(), 'the canopy'
         else:

@@ -33,6 +33,15 @@ def transform(T):
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
 
+def convex_hull(points):
+    """coal's convex hull of ``points`` (N, 3), m: the exact shape of a box or a convex mesh, and the tightest
+    convex shape around any other mesh."""
+    vertices = coal.StdVec_Vec3s()
+    for p in np.asarray(points, float):
+        vertices.append(p)
+    return coal.Convex.convexHull(vertices, False, None)
+
+
 def frames_along(p0, p1):
     """Poses (M, 4, 4) whose z axes run from ``p0`` to ``p1`` (M, 3), centred between them (a coal
     capsule's or cylinder's frame: round about z, so any x will do), and the lengths (M,)."""

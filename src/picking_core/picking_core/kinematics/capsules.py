@@ -20,7 +20,8 @@ class ArmCapsules:
     """The collision capsules of an :class:`~picking_core.kinematics.ArmModel`.
 
     ``frame[k]`` is the index of the frame capsule k moves with in ``[base] + joint_frames(q)``;
-    ``ends[k]`` its two end points (homogeneous) in that frame; ``radius[k]`` m.
+    ``ends[k]`` its two end points (homogeneous) in that frame; ``radius[k]`` m. A capsule that bounds a box
+    or a mesh has that shape's points in that frame in ``hulls[k]`` (None for a cylinder or a sphere).
     """
 
     arm: object
@@ -28,6 +29,7 @@ class ArmCapsules:
     frame: np.ndarray
     ends: np.ndarray
     radius: np.ndarray
+    hulls: tuple = ()
 
     @classmethod
     def from_arm(cls, arm):
@@ -52,7 +54,7 @@ class ArmCapsules:
                     f, offset = where[joint.parent]
                     where[joint.child] = (f, offset @ joint.origin)
                     changed = True
-        links, frame, ends, radius = [], [], [], []
+        links, frame, ends, radius, hulls = [], [], [], [], []
         for c in parse_collisions(arm.urdf, arm.urdf_dir):
             if c.link not in where:
                 raise ValueError(f'link {c.link!r} has collision geometry but does not move with the arm\'s chain '
@@ -64,13 +66,20 @@ class ArmCapsules:
             frame.append(f)
             ends.append(half @ T.T)
             radius.append(c.radius)
+            hulls.append(None if c.points is None else c.points @ T[:3, :3].T + T[:3, 3])
         if not links:
             raise ValueError('the URDF has no collision geometry')
-        return cls(arm, tuple(links), np.array(frame), np.array(ends), np.array(radius))
+        return cls(arm, tuple(links), np.array(frame), np.array(ends), np.array(radius), tuple(hulls))
 
     def segments(self, q, base=None):
         """The capsules' end points at joint positions ``q`` (N, dof): (N, K, 2, 3), m, in the arm's
         base frame, or in the frame ``base`` (4x4, the arm's base pose there) places it in."""
+        T = self.frames(q, base)
+        return np.einsum('nkij,kej->nkei', T[..., :3, :], self.ends)
+
+    def frames(self, q, base=None):
+        """The frame each capsule moves with at joint positions ``q`` (N, dof): (N, K, 4, 4), in the arm's base
+        frame, or in the frame ``base`` places it in."""
         q = np.atleast_2d(np.asarray(q, float))[:, :self.arm.dof]
         frames = self.arm.joint_frames(q)                               # (N, dof + 1, 4, 4)
         if base is not None:
@@ -80,8 +89,7 @@ class ArmCapsules:
             first = np.broadcast_to(np.eye(4), (len(q), 1, 4, 4))
         frames = np.concatenate([first, frames[:, :-1]], axis=1)       # [base, joint 1 .. joint dof]
         # tool0 and anything after the last movable joint sits at that joint's frame with an offset.
-        T = frames[:, self.frame]                                       # (N, K, 4, 4)
-        return np.einsum('nkij,kej->nkei', T[..., :3, :], self.ends)
+        return frames[:, self.frame]
 
 
 def segment_distances(p0, p1, q0, q1):

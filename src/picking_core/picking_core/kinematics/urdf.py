@@ -142,12 +142,14 @@ def default_tip(links, joints, base: str):
 @dataclass(frozen=True)
 class UrdfCapsule:
     """A link's collision cylinder (read as a capsule along its axis) or sphere (a capsule of length 0), or the
-    capsule that bounds its box or mesh, m."""
+    capsule that bounds its box or mesh, m; a box's corners or a mesh's vertices in ``points`` (the capsule's
+    frame), whose convex hull is the shape itself."""
 
     link: str
     origin: np.ndarray          # 4x4 transform link -> shape; the capsule's axis is its z
     radius: float
     length: float
+    points: np.ndarray | None = None
 
 
 def parse_collisions(text: str, base_dir=None):
@@ -169,7 +171,8 @@ def parse_collisions(text: str, base_dir=None):
             if shape is not None and shape.tag in ('box', 'mesh'):
                 points = (_box_corners(shape, name) if shape.tag == 'box' else _mesh_vertices(shape, name, base_dir))
                 frame, radius, length = bounding_capsule(points)
-                out.append(UrdfCapsule(name, origin @ frame, radius, length))
+                inside = (points - frame[:3, 3]) @ frame[:3, :3]
+                out.append(UrdfCapsule(name, origin @ frame, radius, length, inside))
                 continue
             if shape is None or shape.tag not in ('cylinder', 'sphere'):
                 raise ValueError(f'link {name!r}: collision geometry must be a cylinder, sphere, box or mesh, '
