@@ -133,7 +133,13 @@ def test_bad_detections_are_counted_with_their_reason_and_harvest_seen_without_a
         seen = client.create_publisher(Header, 'harvest_seen', BURST)
         client.wait_for(lambda: seen.get_subscription_count() > 0, 20.0, 'the planner to subscribe to harvest_seen')
         mark = client.mark()
-        seen.publish(Header(stamp=client.get_clock().now().to_msg()))
+        header = Header(stamp=client.get_clock().now().to_msg())
+        seen.publish(header)
         refused = client.wait_for(lambda: [m for _, m in client.planner_status[mark['planner']:]
                                            if status_values(m).get('state') == 'refused'], 10.0, 'the refusal')[0]
         assert 'no apples seen' in refused.message
+        # The same goal sent again (its sender heard nothing yet) is answered again, not made again.
+        seen.publish(header)
+        client.wait_for(lambda: len([m for _, m in client.planner_status[mark['planner']:]
+                                     if status_values(m).get('state') == 'refused']) == 2, 10.0, 'the answer again')
+        client.wait_for(lambda: 'came again' in stack.planner.output(), 5.0, 'the planner to say it came again')

@@ -241,13 +241,18 @@ def harvest(args, node, poses):
     t_sent, seen = time.monotonic(), 0
     print(f'sent: {what}, goal {key} ({status_topic} names it so)', flush=True)
 
+    last = [None]
+
     def news():
-        """The next status of this goal (a resend when none came yet: discovery may drop the first)."""
+        """The next status of this goal (a resend when none came yet: discovery may drop the first); an answer
+        the planner sent again for a resend is not news."""
         nonlocal seen
         while seen < len(statuses):
             seen += 1
-            if status_values(statuses[seen - 1]).get('goal') == key:
-                return statuses[seen - 1]
+            got = statuses[seen - 1]
+            if status_values(got).get('goal') == key and got != last[0]:
+                last[0] = got
+                return got
         return None
     pub.publish(msg)
     answered = False

@@ -163,6 +163,21 @@ def test_a_goal_sent_again_is_answered_again_not_planned_twice(port):
     assert len(port.sent) == 1 and [s['state'] for s in port.statuses] == ['accepted', 'accepted']
 
 
+def test_a_goal_told_apart_before_it_is_made_is_a_resend_while_planned_and_after(port):
+    """A harvest of the apples seen is made from the fruit map when it comes: a resend, found before that, is the
+    harvest under way (answered again once answered), never a second harvest of what is seen by then."""
+    runner = GoalRunner(port)
+    first = pose_goal('2.5', [0.6, 0.1, 0.4])
+    assert not runner.resent(first, 'header')
+    runner.take(first)
+    assert runner.resent(pose_goal('2.5', [0.55, 0.1, 0.45]), 'header')       # before the controller answered
+    accept(runner, port)
+    assert runner.resent(pose_goal('2.5', [0.55, 0.1, 0.45]), 'header')
+    assert not runner.resent(pose_goal('2.6', [0.55, 0.1, 0.45]), 'header')   # another stamp: another goal
+    assert len(port.sent) == 1 and port.states('2.5') == ['accepted', 'accepted']
+    assert sum('came again' in text for _, text in port.logs) == 2
+
+
 def test_a_goal_that_waits_too_long_for_the_arm_is_refused_with_the_reason(port):
     runner = GoalRunner(port)
     port.why = 'no joint_states received: the planner does not know where the arm is'

@@ -56,6 +56,10 @@ class SeenApples:
 
     def _on_harvest(self, header):
         goal = Goal(Kind.HARVEST, goal_id(header), None, self.runner.port.wall(), stamp=stamp_key(header.stamp))
+        # A sender that heard no answer yet sends the goal again: that is the harvest under way, not a new one of
+        # the apples seen by then.
+        if self.runner.resent(goal, header):
+            return
         poses = self.map.grasp_poses()
         if not poses:
             self.runner.end(goal, Ending(Outcome.REFUSED, 'no apples seen: the fruit map has no confirmed apple (are '

@@ -88,17 +88,22 @@ class GoalRunner:
         self._superseded, self._superseded_said = 0, -math.inf
 
     # -- goals in ------------------------------------------------------------------------------
+    def resent(self, goal, content):
+        """Whether ``goal`` with ``content`` (compared with ==) is one taken already, sent again: then its newest answer
+        is sent again, and it is not to be planned twice."""
+        repeat, answer = self.book.repeat(goal.key, content, goal.came)
+        if repeat:
+            if answer is not None:
+                self.port.repeat(answer)
+            self.port.log('INFO', f'goal {goal.key} came again: its answer was sent again, it is not planned twice')
+        return repeat
+
     def take(self, goal, content=None):
         """A new goal; ``content`` (compared with ==) tells the same goal sent again, answered again and not
-        planned twice (None: never a resend)."""
+        planned twice (None: never a resend, or told apart by :meth:`resent` before)."""
         self._end_paused()
-        if content is not None:
-            repeat, answer = self.book.repeat(goal.key, content, goal.came)
-            if repeat:
-                if answer is not None:
-                    self.port.repeat(answer)
-                self.port.log('INFO', f'goal {goal.key} came again: its answer was sent again, it is not planned twice')
-                return
+        if content is not None and self.resent(goal, content):
+            return
         try:
             self.port.goal_planner().check(goal.target)
         except ValueError as exc:
