@@ -1,4 +1,4 @@
-# make demo   the main job: the pick-and-place demo (creates .venv on first use)
+# make demo   the main job: the pick-and-place demo (creates .venv on first use); ARM=ur5e or ARM=fr3 on that arm
 # make test   colcon build + colcon test of the packages, then the repository's tests in test/ (system tests in test/system/)
 # make test-load  the end-to-end system tests again, beside four CPU-bound processes
 # make bench  the speed benchmarks (installs the optional peers to compare against)
@@ -40,7 +40,7 @@ $(STAMP): requirements.txt $(PACKAGE_FILES)
 # The pick-and-place cycle of Table 1 through the real nodes, then the paper's examples offline.
 # The paper's examples run even when the ROS part failed; make still fails then.
 demo: $(STAMP)
-	status=0; $(BIN)/picking-demo --out out/demo || status=$$?; \
+	status=0; $(BIN)/picking-demo $(if $(ARM),--arm $(ARM) --out out/demo-$(ARM),--out out/demo) || status=$$?; \
 	mkdir -p out; $(BIN)/picking-plan --paper --out out/paper > out/paper.txt || status=$$?; \
 	echo "paper examples: out/paper (summary in out/paper.txt)"; \
 	exit $$status

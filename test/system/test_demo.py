@@ -20,9 +20,9 @@ def recorded(path):
     return counts
 
 
-def run_demo(out):
+def run_demo(out, *extra):
     """picking-demo --quick: its exit code, what it printed, and when each line came (monotonic s)."""
-    proc = subprocess.Popen([str(BIN / 'picking-demo'), '--quick', '--out', str(out)], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([str(BIN / 'picking-demo'), '--quick', '--out', str(out), *extra], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
     lines = []
     try:
@@ -69,6 +69,22 @@ def test_demo_runs_the_pick_cycle_and_writes_its_report(tmp_path):
     for table in tables:
         widths = {len(re.split(r'(?<!\\)\|', row.strip())) for row in table.strip().splitlines()}
         assert len(widths) == 1, table
+
+
+@pytest.mark.load
+def test_the_demo_runs_on_a_shipped_arm_as_on_the_default_one(tmp_path):
+    """picking-demo --arm ur5e: the same cycle, planned and run on the UR5e's own joints and checked against its
+    own limits; an arm not shipped is an error naming those that are."""
+    code, stdout, _ = run_demo(tmp_path, '--arm', 'ur5e')
+    assert code == 0, stdout[-6000:]
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['joints'] == ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint',
+                                'wrist_2_joint', 'wrist_3_joint', 'gripper_joint']
+    assert all(report['checks'].values()) and len(report['checks']) >= 6, report['checks']
+    assert max(report['final_error'][:6]) < 0.01
+    wrong = subprocess.run([str(BIN / 'picking-demo'), '--quick', '--arm', 'ur10', '--out', str(tmp_path / 'x')],
+                           capture_output=True, text=True, timeout=60, env=os.environ.copy())
+    assert wrong.returncode == 2 and "no arm 'ur10'" in wrong.stderr and 'fr3, ur5e' in wrong.stderr, wrong.stderr
 
 
 def test_a_failed_run_reports_why_and_leaves_no_earlier_report_behind(tmp_path):

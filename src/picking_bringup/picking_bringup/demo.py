@@ -48,7 +48,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
     # The arm as picking-stack brings it up, at the pick cycle's home, its logs beside the report; the simulator
     # hangs the apples the scenarios pick (scenario 3's tree, then scenario 1's apple) and counts what they become.
     tree = write_tree(out / 'tree.yaml', demo)
-    stack = Stack('/', out / 'logs', config=config, args={
+    stack = Stack('/', out / 'logs', config=config, arm=args.arm, args={
         'picking-sim': ['-p', 'initial_positions:=[' + ','.join(map(str, stack_initial)) + ']', '-p', f'tree:={tree}']})
     for name, p in stack.nodes.items():
         log(f'started {name} (pid {p.pid})')
@@ -235,7 +235,8 @@ def run_orchard(events, config, out, demo):
     from .demo_orchard import clear_apples, run_orchard_scenario
     from .shipped import shipped_orchard
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
-    demo = dict(demo, clear_apples=clear_apples(shipped_orchard(n, seed), config))
+    demo = dict(demo, clear_apples=clear_apples(shipped_orchard(n, seed, demo.get('arm'), config), config,
+                                                demo.get('arm')))
     return _section(out, events, 'orchard', *run_orchard_scenario(config, out, demo))
 
 
@@ -294,14 +295,20 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog='picking-demo', description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=Path, default=Path('out/demo'), help='report, plots, MCAP (default %(default)s)')
     parser.add_argument('--quick', action='store_true', help='the pick cycle only (no arc scenario, no comparison)')
+    parser.add_argument('--arm', help='a shipped arm other than the default picking arm (ur5e or fr3, as '
+                        'picking-stack --arm): every scenario but the platform\'s, whose arms its layout names')
     args = parser.parse_args(argv)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 90 + 10))
     os.environ.setdefault('MPLBACKEND', 'Agg')
     from .shipped import config_dir
     config = config_dir()
+    if args.arm and not (config / 'arms' / f'{args.arm}.yaml').exists():
+        parser.error(f'no arm {args.arm!r}: {config / "arms"} has '
+                     + ', '.join(sorted(p.stem for p in (config / 'arms').glob('*.yaml'))))
     args.out.mkdir(parents=True, exist_ok=True)
-    demo, planner_params = load_demo_settings(config)
+    demo, planner_params = load_demo_settings(config, args.arm)
+    demo = dict(demo, arm=args.arm)
     home = list(planner_params.get('home_positions', [0.0, 0.2, 1.6, 0.0, 1.3, 0.0]))
     initial = home + [float(planner_params.get('gripper_open', 0.09))]
     log(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, discovery on loopback only; output in {args.out}')
@@ -313,9 +320,12 @@ def main(argv=None):
     report_ok = False
     if events['ok']:
         log('analysing the run')
-        report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick)
-        if not args.quick:
+        report_ok = analyse_and_report(rec, events, config, args.out, quick=args.quick, arm_name=args.arm)
+        if not args.quick and args.arm:
+            log(f'scenario 4 left out: the platform\'s arms are those its layout names, not the {args.arm}')
+        elif not args.quick:
             report_ok = run_platform(rec, events, config, args.out, demo) and report_ok
+        if not args.quick:
             report_ok = run_orchard(events, config, args.out, demo) and report_ok
     else:
         failure_report(rec, events, args.out)

@@ -30,11 +30,11 @@ def run_orchard_scenario(config, out, demo):
     from .shipped import shipped_orchard
 
     n, seed = int(demo.get('orchard_apples', 12)), int(demo.get('orchard_seed', 1))
-    orchard = shipped_orchard(n, seed)
+    orchard = shipped_orchard(n, seed, demo.get('arm'), config)
     log(f'scenario 5, a tree among branches: {n} apples (seed {seed}), {len(orchard.scene)} obstacles in the scene, '
         f'{len(orchard.twigs)} twigs in a cloud of {len(orchard.cloud)} points; harvested with branch awareness, '
         'then with collision checking off')
-    arm = _OrchardArm('/orchard', config, out)
+    arm = _OrchardArm('/orchard', config, out, demo.get('arm'))
     runs, codes = {}, {}
     try:
         arm.stack.wait_ready()
@@ -65,7 +65,7 @@ def run_orchard_scenario(config, out, demo):
 class _OrchardArm:
     """The orchard's arm (a stack in ``ns``), this scenario's node on its topics, and what it records."""
 
-    def __init__(self, ns, config, out):
+    def __init__(self, ns, config, out, arm=None):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticStatus
         from geometry_msgs.msg import PoseArray
@@ -78,7 +78,7 @@ class _OrchardArm:
 
         from .recording import Recorder
         self.ns = ns
-        self.stack = Stack(ns, out / 'logs', config=config)
+        self.stack = Stack(ns, out / 'logs', config=config, arm=arm)
         use_fast_discovery()
         rclpy.init()
         self.node = rclpy.create_node(f'picking_demo_orchard_{os.getpid()}', namespace=ns)
@@ -155,7 +155,7 @@ def orchard_report(rec, ns, runs, codes, orchard, n, seed, out, demo):
     """The scenario's section: its checks, a table of both runs, the contacts, ``orchard.png`` and ``orchard.mcap``;
     ``(lines, files, checks)``."""
     from picking_core.kinematics import ArmModel
-    from picking_description import default_urdf
+    from picking_description import DEFAULT_ARM, urdf_path
 
     from .plots import plot_orchard
     checks = {'every node of the orchard arm exited with 0': set(codes.values()) == {0}}
@@ -163,11 +163,10 @@ def orchard_report(rec, ns, runs, codes, orchard, n, seed, out, demo):
     if len(runs) < 2:
         checks['both harvests ended'] = False
         return ['', title, '', 'A harvest did not end: see the logs.'], [], checks
-    arm = ArmModel.from_urdf(default_urdf())
-    q = np.array([list(m.position)[:arm.dof] for _, m in rec.messages(f'{ns}/joint_states')
-                  if len(m.position) >= arm.dof])
-    t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m in rec.messages(f'{ns}/joint_states')
-                  if len(m.position) >= arm.dof])
+    arm = ArmModel.from_urdf(urdf_path(demo.get('arm') or DEFAULT_ARM))
+    states = [m for _, m in rec.messages(f'{ns}/joint_states') if set(arm.joint_names) <= set(m.name)]
+    q = np.array([[m.position[list(m.name).index(j)] for j in arm.joint_names] for m in states])
+    t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in states])
     tool = arm.fk(q)[:, :3, 3] if len(q) else np.empty((0, 3))
     second = float(runs['checking off'][0])                  # the baseline's goal stamp: its tool path after it
     tools = {'branch-aware': tool[t < second], 'checking off': tool[t >= second]}
@@ -228,7 +227,7 @@ def _apples(statuses, word, reasons=False):
     return out
 
 
-def clear_apples(orchard, config):
+def clear_apples(orchard, config, arm=None):
     """How many of the tree's apples have a clear cycle within the cone, each planned alone from home
     with the planner's own check (the benchmark's denominator)."""
     from picking_core.collision import Canopy, CollisionChecker
@@ -237,7 +236,7 @@ def clear_apples(orchard, config):
     from picking_core.pick_cycle import PickCycle
 
     from .shipped import shipped_harvest
-    cycle = shipped_harvest(config).cycle
+    cycle = shipped_harvest(config, arm).cycle
     checker = CollisionChecker(ArmCapsules.from_arm(cycle.arm), orchard.scene, Canopy(orchard.cloud))
     pick = PickCycle(cycle.planner, cycle.s, checker)
     home = np.asarray(cycle.s.home_positions, float)

@@ -11,10 +11,15 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from picking_description import default_urdf, scene_path
+from picking_description import DEFAULT_ARM, scene_path, urdf_path
 
 #: The planner's parameter files, in the order picking-stack gives them.
 PLANNER_FILES = ('planner.yaml', 'pick_cycle.yaml')
+
+
+def arm_files(arm=None):
+    """The parameter files an arm adds after the shipped ones (``arms/<arm>.yaml``; none for the default arm)."""
+    return () if arm in (None, DEFAULT_ARM) else (f'arms/{arm}.yaml',)
 
 
 def config_dir() -> Path:
@@ -35,20 +40,20 @@ def config_dir() -> Path:
     raise FileNotFoundError('cannot find the parameter files (config/planner.yaml); set PICKING_CONFIG to their folder')
 
 
-def shipped_harvest(config=None, **overrides):
-    """The :class:`~picking_core.harvest.Harvest` the shipped planner plans with (``overrides``: planner
-    parameters on top, e.g. an arm's own ``box_position``)."""
+def shipped_harvest(config=None, arm=None, **overrides):
+    """The :class:`~picking_core.harvest.Harvest` the shipped planner plans with on ``arm`` (a shipped arm's
+    name; default: the picking arm); ``overrides``: planner parameters on top, e.g. an arm's own
+    ``box_position``."""
     from picking_core.platform import load_harvest
     folder = Path(config) if config else config_dir()
-    return load_harvest(default_urdf(), [folder / name for name in PLANNER_FILES], **overrides)
+    return load_harvest(urdf_path(arm or DEFAULT_ARM), [folder / name for name in (*PLANNER_FILES, *arm_files(arm))],
+                        **overrides)
 
 
-def shipped_orchard(n, seed=0):
-    """A seeded orchard tree of ``n`` apples in front of the shipped arm in its workcell
+def shipped_orchard(n, seed=0, arm=None, config=None):
+    """A seeded orchard tree of ``n`` apples in front of the shipped ``arm`` at its home, in its workcell
     (:func:`picking_core.orchard.orchard_tree`)."""
     from picking_core.collision import Scene
-    from picking_core.kinematics import ArmModel
     from picking_core.orchard import orchard_tree
-    from picking_core.pick_cycle import HOME_POSITIONS
-    return orchard_tree(n, seed, ArmModel.from_urdf(default_urdf()), Scene.from_yaml(scene_path('workcell')),
-                        HOME_POSITIONS)
+    cycle = shipped_harvest(config, arm).cycle
+    return orchard_tree(n, seed, cycle.arm, Scene.from_yaml(scene_path('workcell')), cycle.s.home_positions)

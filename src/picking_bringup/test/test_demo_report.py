@@ -109,6 +109,8 @@ def test_a_harvest_from_the_camera_is_read_against_the_tree_by_place():
             'accepted': {}, 'final': {}, 'places': {**near, 2: (9.0, 9.0, 9.0)}}
     got = on_the_tree(said, tree)
     assert got['picked'] == [(3, 4.0), (0, 8.0)] and got['unmatched'] == [2]
+    assert [(word, place) for word, place, _, _ in got['astray']] == [('picked', (9.0, 9.0, 9.0))]
+    assert got['astray'][0][2] == pytest.approx(min(np.linalg.norm(T[:3, 3] - 9.0) for T in tree))
     assert got['missed'] == [(2, 'the gripper held nothing')]
     assert sorted(got['places']) == [0, 2, 3]
 
