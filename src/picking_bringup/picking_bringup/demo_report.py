@@ -377,7 +377,8 @@ def pick_plots(arm, run, rec, events, planner_params, apple_T, compared, out):
                            'Pick cycle: planned joint position, velocity, acceleration (Figs. 9-11, 14)', 'rad',
                            labels=run.names[:n_arm], marks=run.starts - t[0], mark_labels=[s[0] for s in run.segments],
                            extra=('gripper opening', q[:, n_arm], 'm') if q.shape[1] > n_arm else None),
-             _plot_error(out / 'tracking_error.png', run.t_meas[window] - t[0], run.err[window], run.names)]
+             _plot_error(out / 'tracking_error.png', run.t_meas[window] - t[0], run.err[window], run.names,
+                         arm.joint_names)]
     key = PickCycle(Planner(arm), PickSettings(**{k: (tuple(v) if isinstance(v, list) else v)
                                                  for k, v in planner_params.items()
                                                  if k in PickSettings.__dataclass_fields__})).key_poses(apple_T)
@@ -642,12 +643,13 @@ def _check_mcap(path):
     return sum(1 for _ in read_ros2_messages(str(path)))
 
 
-def _plot_error(path, t, err, names):
-    """Tracking error over the cycle: the arm's joints in degrees, the gripper (a length) in mm on an axis of its own."""
+def _plot_error(path, t, err, names, arm_joints):
+    """Tracking error over the cycle: the arm's joints (``arm_joints``) in degrees, the gripper (a length) in mm on
+    an axis of its own."""
     from .plots import _pyplot, legend_below
     plt = _pyplot()
-    arm = [j for j, n in enumerate(names) if n != 'gripper_joint']
-    gripper = [j for j, n in enumerate(names) if n == 'gripper_joint']
+    arm = [j for j, n in enumerate(names) if n in arm_joints]
+    gripper = [j for j, n in enumerate(names) if n not in arm_joints]
     fig, axes = plt.subplots(1 + bool(gripper), 1, sharex=True, figsize=(8, 4.6 + 1.8 * bool(gripper)),
                              gridspec_kw={'height_ratios': [3, 1][:1 + bool(gripper)]}, squeeze=False)
     axes = axes[:, 0]

@@ -87,12 +87,13 @@ WRIST = (np.array([0.0, 0.0, -0.15]), np.array([0.0, 0.0, -0.085]), 0.035)
 
 class ArmSamples:
     """What the world judges of the arm (``arm``: an ArmModel; ``capsules``: its ArmCapsules) from joint
-    samples ``q`` (N, all joints): tool poses, finger openings (the joint ``gripper``'s position; without one
-    the fingers stay 9 cm apart), and the segments of the links (the gripper's coarse capsules replaced by
+    samples ``q`` (N, all joints, named ``names``): tool poses, finger openings (the position of the joint
+    ``gripper``, by default the arm's gripper joint; without one the fingers stay 9 cm apart), and the segments of the links (the gripper's coarse capsules replaced by
     the wrist body and the two fingers), with their ``radii`` and ``names``."""
 
-    def __init__(self, arm, capsules, names, gripper='gripper_joint'):
+    def __init__(self, arm, capsules, names, gripper=None):
         self.arm, self.capsules = arm, capsules
+        gripper = gripper or arm.gripper_joint
         self.gripper = names.index(gripper) if gripper in names else None
         self.keep = np.flatnonzero(capsules.frame != arm.dof)            # the links before the wrist's last joint
         self.radii = np.concatenate([capsules.radius[self.keep], [WRIST[2], FINGER_RADIUS, FINGER_RADIUS]])
