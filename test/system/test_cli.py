@@ -168,7 +168,10 @@ def test_picking_goal_stop_cancels_a_pick_another_process_sent(tmp_path):
                 break
         done = run('picking-goal', 'stop', *ns, timeout=60)
         rest = pick.communicate(timeout=60)[0]
-        assert done.returncode == 0 and 'canceling (' in done.stdout and 'pick' in done.stdout, done.stdout
+        # (Each cancel goes as soon as its server is found: the controller's may brake the arm first, ending the pick
+        # before the planner's cancel reaches it, so the stop may name either.)
+        assert done.returncode == 0 and 'canceling (' in done.stdout, done.stdout
+        assert 'pick' in done.stdout or 'follow_joint_trajectory' in done.stdout, done.stdout
         assert pick.returncode == 3 and 'canceled:' in rest, ''.join(lines) + rest
         assert rest.count('canceled') == 1, rest              # said once, not "canceled: canceled: ..."
         time.sleep(0.5)

@@ -65,26 +65,34 @@ def spin_until(node, predicate, timeout):
 
 
 def stop(node, timeout):
-    """Cancel every goal of :data:`STOPPED`, whoever sent it, at once: the four cancel services are found together
-    and asked together (a cancel request naming no goal cancels all)."""
+    """Cancel every goal of :data:`STOPPED`, whoever sent it, at once: each cancel service is asked as soon as it is
+    found (a cancel request naming no goal cancels all), the planner's without waiting for the controller's to be
+    discovered (a canceled plan's goal at the controller is canceled by the planner too)."""
     from action_msgs.srv import CancelGoal
     clients = {name: node.create_client(CancelGoal, f'{name}/_action/cancel_goal') for name in STOPPED}
+    futures = {}
 
-    def found():
-        return all(c.service_is_ready() for c in clients.values())
-    if not spin_until(node, found, min(DISCOVERY, timeout)):
-        # (A process just started may need longer than that to discover the services on a busy machine.)
-        print(f'picking-goal: waiting up to {timeout:g} s for the action servers', file=sys.stderr, flush=True)
-        spin_until(node, found, max(timeout - DISCOVERY, 0.0))
-    ready = {name: c for name, c in clients.items() if c.service_is_ready()}
-    if not ready:
+    def ask():
+        for name, client in clients.items():
+            if name not in futures and client.service_is_ready():
+                futures[name] = client.call_async(CancelGoal.Request())
+        return len(futures) == len(clients) and all(f.done() for f in futures.values())
+    import rclpy
+    start = time.monotonic()
+    waiting = False
+    while not ask() and time.monotonic() - start < timeout:
+        if not waiting and len(futures) < len(clients) and time.monotonic() - start > DISCOVERY:
+            # (A process just started may need longer than that to discover the services on a busy machine.)
+            print(f'picking-goal: waiting up to {timeout:g} s for the action servers', file=sys.stderr, flush=True)
+            waiting = True
+        # (Discovery wakes no executor: a short spin looks again soon.)
+        rclpy.spin_once(node, timeout_sec=0.01)
+    if not futures:
         print('picking-goal: no action server to stop (is the arm up, in this namespace?)', file=sys.stderr)
         return EXIT_TIMEOUT
-    missing = sorted(set(clients) - set(ready))
+    missing = sorted(set(clients) - set(futures))
     if missing:
         print(f'picking-goal: no {", ".join(missing)} server: not stopped there', file=sys.stderr)
-    futures = {name: c.call_async(CancelGoal.Request()) for name, c in ready.items()}
-    spin_until(node, lambda: all(f.done() for f in futures.values()), timeout)
     canceling = {name: len(f.result().goals_canceling) for name, f in futures.items() if f.done() and f.result()}
     total = sum(canceling.values())
     if total:
@@ -93,7 +101,7 @@ def stop(node, timeout):
               flush=True)
     else:
         print('stop: no goal was running; the arm holds where it is', flush=True)
-    return EXIT_OK if len(canceling) == len(ready) else EXIT_TIMEOUT
+    return EXIT_OK if len(canceling) == len(futures) else EXIT_TIMEOUT
 
 
 def in_a_node(make_node, argv, work, cut_short):
