@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 from .stop import stop_asked
@@ -12,6 +13,10 @@ def main(argv=None):
     timeout = stop_asked(argv)
     if timeout is not None:
         from .stop import main as stop_main
-        return stop_main(argv, timeout)
+        code = stop_main(argv, timeout)
+        # The stop is done and rclpy shut down: the interpreter's own teardown would only keep the shell waiting.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     from .goal import main as goal_main
     return goal_main(argv)
