@@ -301,11 +301,13 @@ def main(argv=None):
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 90 + 10))
     os.environ.setdefault('MPLBACKEND', 'Agg')
-    from .shipped import config_dir
+    from .shipped import check_arm, config_dir
     config = config_dir()
-    if args.arm and not (config / 'arms' / f'{args.arm}.yaml').exists():
-        parser.error(f'no arm {args.arm!r}: {config / "arms"} has '
-                     + ', '.join(sorted(p.stem for p in (config / 'arms').glob('*.yaml'))))
+    if args.arm:
+        try:
+            check_arm(config, args.arm)
+        except ValueError as exc:
+            parser.error(str(exc))
     args.out.mkdir(parents=True, exist_ok=True)
     demo, planner_params = load_demo_settings(config, args.arm)
     demo = dict(demo, arm=args.arm)

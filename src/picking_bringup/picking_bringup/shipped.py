@@ -22,6 +22,13 @@ def arm_files(arm=None):
     return () if arm in (None, DEFAULT_ARM) else (f'arms/{arm}.yaml',)
 
 
+def check_arm(config, arm):
+    """ValueError naming the shipped arms unless ``config`` (the parameter files' folder) has ``arms/<arm>.yaml``."""
+    if not (Path(config) / 'arms' / f'{arm}.yaml').exists():
+        shipped = sorted(p.stem for p in (Path(config) / 'arms').glob('*.yaml'))
+        raise ValueError(f'no arm {arm!r}: config/arms has {", ".join(shipped) or "none"}')
+
+
 def config_dir() -> Path:
     """The folder of the nodes' parameter files; FileNotFoundError when none is found."""
     env = os.environ.get('PICKING_CONFIG')

@@ -215,10 +215,10 @@ class Stack:
         """Every node on the description's ``arm`` (``urdf/<arm>.urdf``), with ``config/arms/<arm>.yaml`` after
         its own files; ValueError naming the arms there if it has none."""
         from picking_description import urdf_path
+
+        from .shipped import check_arm
+        check_arm(self.config, arm)
         settings = Path('arms') / f'{arm}.yaml'
-        if not (self.config / settings).exists():
-            shipped = sorted(p.stem for p in (self.config / 'arms').glob('*.yaml'))
-            raise ValueError(f'no arm {arm!r}: config/arms has {", ".join(shipped) or "none"}')
         urdf = urdf_path(arm)
         for name in NODES:
             self.files[name] = (*self.files[name], str(settings))
