@@ -285,7 +285,8 @@ class CollisionChecker:
     def _narrow(self, frame, length, k, o, n, t, allowed):
         """coal's answer for link shape ``k`` (placed at ``frame``; a capsule ``length`` m long, or a hull)
         against obstacle ``o`` (-1: the canopy)."""
-        shape = self.hulls[k] or coal.Capsule(float(self.capsules.radius[k]), max(float(length), 1e-9))
+        shape = (self.hulls[k] if self.hulls[k] is not None else
+                 coal.Capsule(float(self.capsules.radius[k]), max(float(length), 1e-9)))
         if o < 0:
             other, pose, name = self.canopy.octree, coal.Transform3s(), 'the canopy'
         else:
