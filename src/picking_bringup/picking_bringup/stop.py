@@ -104,6 +104,13 @@ def stop(node, timeout):
     return EXIT_OK if len(canceling) == len(futures) else EXIT_TIMEOUT
 
 
+def without_generators():
+    """Keep rosidl's code generator out of this process, which only sends messages: a message type's first use
+    imports ``rosidl_generator_py``, whose ``__init__`` also imports its generator (with lark and empy, slow to
+    import) and goes on without it when that import fails, as it then does."""
+    sys.modules.setdefault('rosidl_generator_py.generate_py_impl', None)
+
+
 def in_a_node(make_node, argv, work, cut_short):
     """``work(node)``'s exit code, in a node ``make_node()`` of this process (rclpy started with ``argv``); an
     interrupt (Ctrl-C, or SIGTERM as `timeout` sends it) ends it with EXIT_TIMEOUT, saying it came before
@@ -127,6 +134,8 @@ def in_a_node(make_node, argv, work, cut_short):
 
 def main(argv, timeout):
     """A stop in a process of its own: ``argv`` may name the arm (``--ros-args -r __ns:=/arm2``)."""
+    without_generators()
+
     def make_node():
         from rclpy.node import Node
         from rclpy.parameter import Parameter
