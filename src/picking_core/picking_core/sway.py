@@ -20,7 +20,7 @@ that is not finite; one stamped ahead of the clock is the caller's to refuse (it
 from __future__ import annotations
 
 import collections
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,7 +50,7 @@ class Fit:
     """The motion fitted, along each axis: ``coeffs`` (3, 5) m of 1, sin, cos, and the second harmonic's sin and
     cos (a pendulum rises and falls twice a swing) at ``frequency`` Hz (0: still: the centre alone), time counted
     from ``t0`` s; ``cov`` (3, 5, 5) their covariance; ``rms`` (3,) m how far the apple strays from the model
-    beyond the detections' noise; ``span`` s of detections."""
+    beyond the detections' noise; ``span`` s of detections; ``frequency_sd`` Hz, the frequency's standard deviation."""
 
     coeffs: np.ndarray
     cov: np.ndarray
@@ -58,6 +58,7 @@ class Fit:
     t0: float
     rms: np.ndarray
     span: float
+    frequency_sd: float = 0.0
 
     @property
     def centre(self):
@@ -148,8 +149,8 @@ class SwayFit:
         mean = f.coeffs @ row
         var = np.einsum('i,aij,j->a', row, f.cov, row) + f.rms ** 2
         if f.frequency > 0:
-            # A frequency off by its resolution over the window turns the phase by this much a second beyond it.
-            drift = 2 * np.pi * self._resolution(f.span) * max(0.0, t - self.t)
+            # A frequency off by its deviation turns the phase by this much a second beyond the detections.
+            drift = 2 * np.pi * f.frequency_sd * max(0.0, t - self.t)
             var = var + (np.sqrt(np.sum(f.coeffs[:, 1:3] ** 2, axis=1)) * drift) ** 2
         return mean, np.diag(var)
 
@@ -174,13 +175,17 @@ class SwayFit:
         grid = np.arange(max(lo, around - 4 * step), min(hi, around + 4 * step) + step / 2, step)
         chi = self._chi2(t - t0, z, v, grid)
         k = int(np.argmin(chi))
-        best = grid[k]
+        best, sd = grid[k], self._resolution(span)
         if 0 < k < len(grid) - 1:
             c0, c1, c2 = chi[k - 1], chi[k], chi[k + 1]
             denom = c0 - 2 * c1 + c2
             if denom > 0:
                 best = best + 0.5 * step * (c0 - c2) / denom
-        sway = self._solve(t - t0, z, v, best)
+                # The frequency's deviation from the misfit's curvature about its least (one unit of misfit per
+                # deviation, scaled by how much worse than the noise the sway fits); never above the resolution.
+                scale = max(1.0, c1 / max(z.size - 10, 1))
+                sd = min(sd, step * np.sqrt(2.0 * scale / denom))
+        sway = replace(self._solve(t - t0, z, v, best), frequency_sd=float(sd))
         w = 1.0 / v
         misfit_still = float(np.sum(w * (z - np.sum(w * z, axis=0) / np.sum(w, axis=0)) ** 2))
         if misfit_still - float(np.min(chi)) < self.s.significance:
