@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import approaches, geometry, trajectory
+from . import approaches, around, geometry, trajectory
 from .kinematics import Unreachable
 from .planning import JOINT_METHODS, Plan
 from .planning.remembered import Remembered
@@ -117,6 +117,10 @@ class PickSettings:
         In a harvest (with a collision checker), the fastest a link may pass an apple still on the
         tree, m/s: a joint move passing one faster goes around those apples where a way is found
         (:mod:`picking_core.collision.fruit`); 0: the other apples are not looked at.
+    hold_time : float
+        A pick of a moving apple whose closing is not sure waits at the stand-off (P1) for a
+        calmer moment at most this long from its first hold, s; then it backs off home and
+        ends without closing (:mod:`picking_core.moving_pick`).
     """
 
     home_positions: tuple = HOME_POSITIONS
@@ -140,6 +144,7 @@ class PickSettings:
     approach_cone: float = float(np.radians(45.0))
     apple_region: float = 0.06
     apple_pass_speed: float = 0.0
+    hold_time: float = 3.0
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -153,7 +158,8 @@ class PickSettings:
                              f"arm's base ({arm.tool_frame} at z = {tool[2]:.3f} m in {arm.base_frame})")
         if not (np.isfinite(self.transfer_lift) and 0.0 <= self.transfer_lift < 1.0):
             raise ValueError(f'transfer_lift must be in [0, 1) rad, got {self.transfer_lift}')
-        for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height'):
+        for name in ('approach_distance', 'lift_height', 'grasp_time', 'release_time', 'box_drop_height',
+                     'hold_time'):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f'{name} must be a finite number > 0, got {value}')
@@ -282,7 +288,7 @@ class PickCycle:
         return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
 
     def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True, neighbours=None,
-             approach_time=None):
+             approach_time=None, from_here=False):
         """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
 
         A harvest chains cycles (:mod:`picking_core.harvest`): ``from_box`` starts at rest in the
@@ -297,15 +303,16 @@ class PickCycle:
         obstacle. With a checker, ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`: the
         other apples on the tree) are passed slowly: a joint move that would pass one fast goes around them.
         ``approach_time`` s: the least the move to P1 may last (a pick timed to close on a moving apple when it
-        gets there, :mod:`picking_core.moving_pick`; a detour is not stretched).
+        gets there, :mod:`picking_core.moving_pick`; a detour is not stretched). ``from_here``: the approach
+        leaves ``start`` even at rest, not by way of home (a pick that waited at its stand-off).
         """
         return approaches.clear_cycle(
             self, lambda T, detours=None, branch=None, slow=None: self._plan(
-                start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time),
+                start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time, from_here),
             T_apple, neighbours)
 
     def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None,
-              approach_time=None):
+              approach_time=None, from_here=False):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
@@ -319,7 +326,7 @@ class PickCycle:
         d.slow = dict(slow or {})
         d.approach_time = approach_time
         rise_line = None
-        if not from_box and self._flies_on(start):
+        if not from_box and self._flies_on(start, from_here):
             d.flying = start
             try:
                 self._reach_apple(d, None)
@@ -377,13 +384,13 @@ class PickCycle:
             return None
         return (traj.end_state() if at_end else traj.start_state())[1:]
 
-    def _flies_on(self, start):
+    def _flies_on(self, start, from_here=False):
         """Whether the approach leaves ``start`` as it moves (a jerk-limited move from any state), not after a brake
-        to rest and the way home: a pick whose target moved while the arm approached it carries on towards it."""
-        if self.s.approach_method != 'optimal':
-            return False
+        to rest and the way home: a pick whose target moved while the arm approached it carries on towards it;
+        ``from_here`` at rest too (any method)."""
         _, qd, qdd = self.planner.check_start(start)
-        return bool(np.abs(qd).max() >= 1e-4 or np.abs(qdd).max() >= 1e-3)
+        moving = bool(np.abs(qd).max() >= 1e-4 or np.abs(qdd).max() >= 1e-3)
+        return (from_here and not moving) or (moving and self.s.approach_method == 'optimal')
 
     def _leave_start(self, d, start, from_box):
         """From the start: brake to rest and go home (P0), or, from the box, the line out of it (returned as a
@@ -498,6 +505,25 @@ class PickCycle:
         if contact is not None:
             raise approaches.Blocked(f'the way home from the box hits {contact}')
         return done
+
+    def stand_off(self, start, T_apple):
+        """From ``start`` (q, qd, qdd) to rest at P1 of a pick of ``T_apple``: where a pick of a moving apple waits
+        for a closing it is sure of. The plan has no gripper column (the fingers keep their opening); around what
+        the checker sees, else Blocked naming the contact."""
+        return around.plan_pose(self.planner, self.checker, start, self.key_poses(T_apple)['P1'])
+
+    def back_off(self, start):
+        """From ``start`` (q, qd, qdd; braking first if it moves) home to P0 at rest: a pick that gives up. The plan
+        has no gripper column; Blocked naming a contact on the way."""
+        stop, q_rest = self.planner.come_to_rest(start)
+        method = self.s.approach_method
+        home = self.planner.joint_move(q_rest, np.asarray(self.s.home_positions, float), method)
+        plan = self.planner.join(([('brake', 'quintic', stop)] if stop is not None else []) +
+                                 [('P0 back off', method, home)], method)
+        contact = None if self.checker is None else self.checker.check(plan.trajectory)
+        if contact is not None:
+            raise approaches.Blocked(f'the way back home hits {contact}')
+        return plan
 
     def _with_gripper(self, parts, cart, gripper_start):
         """The Plan of the parts ``(label, method, traj)``, the gripper's opening as its last joint."""

@@ -24,7 +24,7 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
         'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius',
-        'box_blend_radius', 'approach_cone', 'apple_region', 'apple_pass_speed')
+        'box_blend_radius', 'approach_cone', 'apple_region', 'apple_pass_speed', 'hold_time')
 #: The world the plans keep clear of (collision.World).
 COLLISION = ('scene_file', 'avoid_collisions', 'collision_clearance')
 
@@ -85,6 +85,8 @@ _TEXT = {
     'apple_pass_speed': ('in a harvest, the fastest a link may pass an apple still on the tree: a joint move passing '
                          'one faster goes around those apples where a way is found (0: not looked at)', 'm/s',
                          (0.0, 10.0)),
+    'hold_time': ('a pick of a moving apple whose closing is not sure waits at the stand-off at most this long from '
+                  'its first hold, then backs off home without closing', 's', (0.1, 60.0)),
 }
 
 PARAMS = (
