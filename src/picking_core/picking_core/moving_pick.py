@@ -12,8 +12,14 @@ plan from a moving arm to a moved P1 takes a few tenths of a second again, so th
 the arm cannot make the instant within ``SLIP`` (near P1, or the apple swung far), the running plan is kept: the aim
 holds, as it does once the final straight approach has begun (a new plan would have to back out of it).
 
-:func:`closing_margin` is the closing rule's measure: how far inside the fingers' capture region the predicted
-centre stays at that instant, three standard deviations of the prediction taken off.
+:func:`sure` is the closing rule: the fingers close only where the predicted centre, one standard deviation of the
+prediction taken off (:func:`closing_margin`), stays inside their capture region. The prediction's
+covariance holds the fit's own uncertainty and how far the apple strays from a steady sway, so it is wide: one
+standard deviation of it is about the spread of the misses. The rule judges the aims that decide the closing
+(:func:`holds_off`: the straight approach begins within ``DECIDE``); an earlier aim, a second or so ahead, is always
+less sure and is refined by the detections still to come. A pick whose deciding aim is not sure goes to the stand-off
+(P1) and holds there, aimed again at each detection, until an aim is sure (the pick then goes on from where the arm
+is) or the pick cycle's ``hold_time`` has passed (it backs off home, never closing on air).
 """
 
 from __future__ import annotations
@@ -36,6 +42,10 @@ ROUNDS = 4
 SLIP = 0.02
 #: m: the width a pick's fingers are timed to meet when the apple's own is not known (a typical apple's).
 APPLE_WIDTH = 0.07
+#: Standard deviations of the prediction the closing rule takes off the capture region.
+SIGMAS = 1.0
+#: s: an aim whose straight approach to the apple begins within this is the one the fingers close by.
+DECIDE = 0.5
 
 
 class AimHolds(ValueError):
@@ -46,11 +56,12 @@ class AimHolds(ValueError):
 class Follow:
     """A pick's apple in motion: ``predict(t)`` is ``(mean, cov)`` of its centre at time ``t``; ``width``
     m; ``closes_at`` when the pick's last plan closes the fingers (None before one); times on the clock the apple's
-    places are stamped with (the ROS clock), s."""
+    places are stamped with (the ROS clock), s; ``holding`` while the pick waits at the stand-off for a sure aim."""
 
     predict: Callable
     width: float = APPLE_WIDTH
     closes_at: float | None = None
+    holding: bool = False
 
 
 def closing_time(plan, width):
@@ -118,7 +129,7 @@ def grasp_pose(rotation, p):
     return T
 
 
-def closing_margin(a, gripper=Gripper(), sigmas=3.0):
+def closing_margin(a, gripper=Gripper(), sigmas=SIGMAS):
     """m: how far inside ``gripper``'s capture region (tool frame) the predicted centre of aim ``a`` lies at its
     closing instant, less ``sigmas`` standard deviations of the prediction along each axis; the least over the
     axes (negative: the fingers may close beside the apple)."""
@@ -127,3 +138,31 @@ def closing_margin(a, gripper=Gripper(), sigmas=3.0):
     sd = np.sqrt(np.maximum(np.diag(R.T @ a.cov @ R), 0.0))
     half = np.array([gripper.centred, gripper.across, gripper.along])
     return float(np.min(half - np.abs(local) - sigmas * sd))
+
+
+def sure(a, gripper=Gripper()):
+    """Whether aim ``a`` may close the fingers: its :func:`closing_margin` is not negative."""
+    return closing_margin(a, gripper) >= 0.0
+
+
+def holds_off(a, holding=False, begins=None):
+    """Whether the pick of aim ``a`` goes to the stand-off instead: the aim decides the closing (the straight approach
+    begins within :data:`DECIDE`: in ``begins`` s, else in ``a``'s plan's; or the pick already ``holding`` waits for a
+    sure aim) and is not :func:`sure`."""
+    begins = final_approach(a.plan) if begins is None else begins
+    return (holding or begins <= DECIDE) and not sure(a)
+
+
+def decide(plan_to, predict, rotation, width, at=None, holding=False):
+    """A pick's next plan as :func:`aim` makes it (same arguments; ``holding`` as :func:`holds_off` takes it):
+    ``(aim, holds)``, the aim and whether the pick goes to the stand-off instead; None when the running plan keeps
+    its aim. When no new plan keeps the closing instant, the running plan closes by the prediction all the same: the
+    soonest aim from here says whether it is still sure enough to close on (else the pick holds off)."""
+    aimed = aim(plan_to, predict, rotation, width, at)
+    if aimed is not None:
+        return aimed, holds_off(aimed, holding)
+    soonest = aim(plan_to, predict, rotation, width)
+    # (The running plan's straight approach begins about as long before its closing as the soonest plan's does.)
+    if holds_off(soonest, holding, at - (soonest.at - final_approach(soonest.plan))):
+        return soonest, True
+    return None

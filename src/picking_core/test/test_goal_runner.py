@@ -443,8 +443,9 @@ def _closing_miss(port, flight):
 
 def test_a_pick_whose_apple_streams_in_on_the_topic_is_aimed_where_it_will_be_at_closing(port):
     """Picks of the same apple sent on the topic at 30 Hz (its places, stamped) move the first pick on; once its
-    places show a sway, each plan closes the fingers where the apple will be then."""
+    places show a sway, each plan closes the fingers where the apple will be then (sure of it: it never waits)."""
     runner, aimed = _streamed(port, 30)
+    assert 'holding' not in port.states('p')
     assert all(s == 'superseded' for k in range(1, 31) for s in port.states(f'q{k}'))
     assert 'taken as its new target' in [s for s in port.statuses if s.get('goal') == 'q30'][-1]['text']
     assert aimed and all(f.goal.key == 'p' for f, _, _ in port.sent)
@@ -453,6 +454,43 @@ def test_a_pick_whose_apple_streams_in_on_the_topic_is_aimed_where_it_will_be_at
     # Each place ends one way (how many of each depends on how long planning takes here, which sets the starts).
     assert counts['received'] == 30 and sum(counts[k] for k in ('spliced', 'replaced', 'held', 'refused')) == 30, \
         (counts, [t[:200] for _, t in port.logs if 'refused' in t])
+
+
+def test_a_pick_never_sure_of_its_swaying_apple_waits_at_the_stand_off_then_backs_off_without_closing(port):
+    """Places 25 mm to either side of the sway at random, across the fingers (a poor camera, gusts): no aim is sure,
+    so the pick goes to the stand-off and waits there, aimed again at each place; when the pick cycle's hold_time has
+    passed it backs off home and the goal ends aborted, saying why. Once its places tell how it moves, no plan
+    closes the fingers."""
+    rng = np.random.default_rng(3)
+    runner = GoalRunner(port)
+    runner.take(_pick_at('p', port.t))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    for _ in range(60):
+        port.t += 1 / 30
+        port.t_wall += 1 / 30
+        T = _pick_at('x', port.t).target.pose.copy()
+        T[1, 3] += rng.choice([-0.025, 0.025])
+        runner.retarget(T, port.t_wall, f'{port.t:.9f}')
+        if port.sent[-1][0] is not flight:
+            flight = accept(runner, port)
+    plans = [f.planned.plan.extra for f, _, _ in port.sent]
+    first = next(k for k, x in enumerate(plans) if 'holds' in x)      # once the places tell how it moves
+    assert first < len(plans) - 10 and all('holds' in x and 'closes_in' not in x for x in plans[first:])
+    assert 'holding' in port.states('p') and port.states('p').count('holding') == 1
+    hold = port.planner.pick.hold_time
+    runner.on_result(flight, 'succeeded', 0, '')                 # at rest at the stand-off: the goal goes on
+    assert port.states('p')[-1] != 'aborted'
+    port.t_wall += hold
+    runner.tick()
+    backing = accept(runner, port)
+    assert backing.goal.target.back_off and backing.planned.plan.segments[-1].label == 'P0 back off'
+    q_end = backing.planned.plan.trajectory.sample([backing.planned.plan.duration])[0][0]
+    assert q_end == pytest.approx(HOME, abs=1e-6)
+    assert 'backs off' in runner.retarget(T, port.t_wall, f'{port.t:.9f}')  # a place now moves nothing
+    runner.on_result(backing, 'succeeded', 0, '')
+    assert port.states('p')[-1] == 'aborted'
+    assert 'backed off home without closing' in port.statuses[-1]['text']
 
 
 def test_a_camera_out_for_half_a_second_leaves_the_pick_aimed(port):
@@ -491,3 +529,4 @@ def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_w
     ahead_goal.stamp = f'{port.t + 5.0:.9f}'
     runner.take(ahead_goal)
     assert port.states('ahead') == ['refused'] and 'ahead of the clock' in port.statuses[-1]['text']
+

@@ -7,7 +7,17 @@ from conftest import shipped_harvest
 from scipy.spatial.transform import Rotation
 
 from picking_core.harvest import SIDEWAYS
-from picking_core.moving_pick import AGREE, Aim, aim, closing_margin, closing_time, final_approach
+from picking_core.moving_pick import (
+    AGREE,
+    DECIDE,
+    Aim,
+    aim,
+    closing_margin,
+    closing_time,
+    final_approach,
+    holds_off,
+    sure,
+)
 
 ROTATION = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
 APPLE = np.array([0.70, 0.15, 0.65])
@@ -75,10 +85,29 @@ def test_a_re_plan_from_the_moving_arm_keeps_the_closing_instant_or_is_not_taken
     assert aim(plan_to, lambda s: (moved, np.eye(3) * 1e-6), ROTATION, WIDTH, 0.2) is None   # cannot close so soon
 
 
-def test_an_uncertain_prediction_leaves_no_closing_margin():
+def test_an_uncertain_or_stray_prediction_is_not_sure_enough_to_close_on():
     T = _pose(APPLE)
-    sure = Aim(None, T, 1.0, APPLE, np.eye(3) * 0.001 ** 2)
-    unsure = Aim(None, T, 1.0, APPLE, np.eye(3) * 0.01 ** 2)
-    off = Aim(None, T, 1.0, APPLE + [0.0, 0.015, 0.0], np.eye(3) * 0.001 ** 2)
-    assert closing_margin(sure) == pytest.approx(0.02 - 0.003)
-    assert closing_margin(unsure) < 0 and closing_margin(off) < closing_margin(sure) - 0.01
+    certain = Aim(None, T, 1.0, APPLE, np.eye(3) * 0.001 ** 2)
+    unsure = Aim(None, T, 1.0, APPLE, np.eye(3) * 0.025 ** 2)
+    off = Aim(None, T, 1.0, APPLE + [0.0, 0.025, 0.0], np.eye(3) * 0.001 ** 2)
+    assert closing_margin(certain) == pytest.approx(0.02 - 0.001)       # the fingers' 2 cm less one deviation
+    assert closing_margin(unsure) == pytest.approx(-0.005) and closing_margin(off) == pytest.approx(-0.006)
+    assert sure(certain) and not sure(unsure) and not sure(off)
+
+
+def test_only_an_aim_that_decides_the_closing_must_be_sure_of_it(cycle):
+    """An unsure aim from home (its straight approach a second away, detections still to come) goes on; the same from
+    the stand-off (the approach begins at once) holds off, as does any aim of a pick already waiting there; a sure
+    one never does."""
+    T = _pose(APPLE)
+    from_home = cycle.plan(_home(cycle), T)
+    P1 = cycle.arm.ik(cycle.key_poses(T)['P1'], seed=np.asarray(cycle.s.home_positions, float))
+    at_stand_off = cycle.plan((P1, 0 * P1, 0 * P1), T, from_here=True)
+    assert final_approach(from_home) > DECIDE >= final_approach(at_stand_off)
+    unsure, certain = np.eye(3) * 0.025 ** 2, np.eye(3) * 0.001 ** 2
+    assert not holds_off(Aim(from_home, T, 1.0, APPLE, unsure))
+    assert holds_off(Aim(at_stand_off, T, 1.0, APPLE, unsure))
+    assert holds_off(Aim(from_home, T, 1.0, APPLE, unsure), holding=True)
+    assert not holds_off(Aim(at_stand_off, T, 1.0, APPLE, certain), holding=True)
+    by_home = cycle.plan((P1, 0 * P1, 0 * P1), T)                   # a pick from rest anywhere else goes home first
+    assert by_home.segments[0].label == 'P0 home' and final_approach(by_home) > final_approach(at_stand_off) + 0.5

@@ -9,7 +9,9 @@ controller splices a re-target; the arm follows its schedule exactly (the servo'
 playback's). Three ways to aim:
 
 - ``predicted``: where the fit says the apple will be when the fingers close (:func:`~picking_core.moving_pick.aim`),
-  planned again at each detection until the final straight approach begins;
+  planned again at each detection until the final straight approach begins; an aim that decides the closing and is
+  not sure of it (:func:`~picking_core.moving_pick.holds_off`) goes to the stand-off instead and waits there for a sure one, backing off
+  home after the cycle's ``hold_time``, as the planner does;
 - ``latest``: the latest detection, planned again the same way (tracking without prediction);
 - ``fixed``: the latest detection when the pick starts, never planned again (no tracking).
 """
@@ -17,12 +19,13 @@ playback's). Three ways to aim:
 from __future__ import annotations
 
 import collections
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from picking_core import trajectory
 from picking_core.fruit import Fate
-from picking_core.moving_pick import aim, closing_margin, final_approach
+from picking_core.moving_pick import aim, closing_margin, decide, final_approach
 from picking_core.sway import SwayFit
 
 MODES = ('predicted', 'latest', 'fixed')
@@ -37,7 +40,9 @@ class SwayPick:
     """What the world counted: the apple ``in_box``, ``bruised``, ``knocks``; ``miss`` m from the tool's grasp point to
     the apple's true centre when the fingers closed to its width (None: they never did); ``cycle`` s from the pick's
     start to the arm home again; ``plans`` made; ``margin`` m, the closing rule's (:func:`closing_margin`) for the
-    last aim (None when not predicted); ``events``, the world's (:class:`~picking_core.fruit.Event`)."""
+    last aim that closed (None when not predicted or none did); ``held`` s from the first plan to the stand-off to
+    the pick's going on (or its backing off), 0 when it never waited; ``backed_off`` when it went home without
+    closing; ``events``, the world's (:class:`~picking_core.fruit.Event`)."""
 
     in_box: bool
     bruised: bool
@@ -46,6 +51,8 @@ class SwayPick:
     cycle: float
     plans: int
     margin: float | None
+    held: float = 0.0
+    backed_off: bool = False
     events: tuple = ()
 
 
@@ -63,8 +70,8 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
     rest = np.append(home, cycle.s.gripper_open)
     schedule = []                                   # (start s, plan), in the order they take over
     inbox = collections.deque()                     # (handed over at, stamp, detection)
-    latest = last_aim = started = ends = miss = opening = None
-    plans, events = 0, []
+    latest = last_aim = started = ends = miss = opening = hold_since = None
+    plans, events, held, backed_off = 0, [], 0.0, False
     dt = 1.0 / (rate * SUBSTEPS)
     for k in range(1, 10 ** 7):
         t = k * dt
@@ -99,24 +106,48 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
             state, gripper = (q[:-1], qd[:-1], qdd[:-1]), float(q[-1])
             at = None if last_aim is None else last_aim.at - (splice - begun)
 
-        def plan_to(T, approach_time=None, state=state, gripper=gripper):
-            return cycle.plan(state, T, gripper, approach_time=approach_time)
+        def plan_to(T, approach_time=None, state=state, gripper=gripper, here=hold_since is not None):
+            return cycle.plan(state, T, gripper, approach_time=approach_time, from_here=here)
         if mode == 'predicted':
             def predict(s, at=splice):
                 return fit.predict(at + s)
         else:
             def predict(s, z=latest):
                 return z, R
-        aimed = aim(plan_to, predict, rotation, width, at)
-        if aimed is None:
+        if mode == 'predicted':
+            decided = decide(plan_to, predict, rotation, width, at, hold_since is not None)
+        else:
+            aimed = aim(plan_to, predict, rotation, width, at)
+            decided = None if aimed is None else (aimed, False)
+        if decided is None:
             continue                                # the aim holds: the running plan is kept
-        last_aim, plan = aimed, aimed.plan
+        aimed, holds = decided
+        if holds:
+            hold_since = splice if hold_since is None else hold_since
+            held, last_aim = splice - hold_since, None
+            backed_off = held >= cycle.s.hold_time
+            plan = _opening_kept(cycle.back_off(state) if backed_off else cycle.stand_off(state, aimed.T),
+                                 gripper if gripper is not None else cycle.s.gripper_open)
+            if backed_off:
+                ends = splice + plan.duration
+        else:
+            if hold_since is not None:
+                held, hold_since = splice - hold_since, None
+            last_aim, plan = aimed, aimed.plan
         plans += 1
         schedule = [(s, p) for s, p in schedule if s < splice] + [(splice, plan)]
         started = splice if started is None else started
     return SwayPick(bool(world.fate[index] == Fate.IN_BOX), bool(world.bruised[index]), int(world.knocks[index]),
                     miss, ends - started, plans,
-                    closing_margin(last_aim) if mode == 'predicted' else None, tuple(events))
+                    closing_margin(last_aim) if mode == 'predicted' and last_aim is not None else None, held,
+                    backed_off, tuple(events))
+
+
+def _opening_kept(plan, opening):
+    """``plan`` (the arm's joints only) with the fingers kept at ``opening``, as the controller keeps a joint a
+    trajectory leaves out."""
+    kept = trajectory.hold([opening], plan.duration)
+    return replace(plan, trajectory=trajectory.stack([plan.trajectory, kept]))
 
 
 def _arm(schedule, t, rest):

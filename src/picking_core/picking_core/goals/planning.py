@@ -11,7 +11,7 @@ from ..approaches import Blocked
 from ..collision import STEP as COLLISION_STEP
 from ..collision import Allowed
 from ..harvest import Harvest, HarvestPlan
-from ..moving_pick import AimHolds, aim
+from ..moving_pick import AimHolds, closing_margin, decide
 from ..pick_cycle import PickCycle
 from ..planning import JERK_UNBOUNDED, PATH_METHODS, POSE_METHODS, Plan
 from .requests import Kind
@@ -49,6 +49,8 @@ class GoalPlanner:
         elif target.kind == Kind.PATH:
             planned = Planned(around.plan_path(self._planner_for(target), checker, start.state, list(target.poses),
                                                target.method or None))
+        elif target.kind == Kind.PICK and target.back_off:
+            planned = Planned(self._cycle(checker).back_off(start.state))
         elif target.kind == Kind.PICK and target.follow is not None:
             planned = Planned(self._aimed(self._cycle(checker), target, start, at))
         elif target.kind == Kind.PICK:
@@ -70,15 +72,24 @@ class GoalPlanner:
     @staticmethod
     def _aimed(cycle, target, start, t0):
         """A pick's plan aimed where its moving apple will be when the fingers close (:mod:`~picking_core.moving_pick`),
-        keeping the closing instant of its last plan; ``t0`` the ROS time the plan starts."""
+        keeping the closing instant of its last plan; ``t0`` the ROS time the plan starts. An aim that
+        :func:`~picking_core.moving_pick.holds_off` is a plan to the stand-off instead, its ``extra['holds']`` the
+        closing margin it had (m)."""
         follow = target.follow
 
         def plan_to(T, least):
-            return cycle.plan(start.state, T, gripper_start=start.gripper, approach_time=least)
+            return cycle.plan(start.state, T, gripper_start=start.gripper, approach_time=least,
+                              from_here=follow.holding)
         at = None if follow.closes_at is None else follow.closes_at - t0
-        aimed = aim(plan_to, lambda s: follow.predict(t0 + s), target.pose[:3, :3], follow.width, at)
-        if aimed is None:
+        decided = decide(plan_to, lambda s: follow.predict(t0 + s), target.pose[:3, :3], follow.width, at,
+                         follow.holding)
+        if decided is None:
             raise AimHolds('no new plan closes the fingers on time: the running plan keeps its aim')
+        aimed, holds = decided
+        if holds:
+            plan = cycle.stand_off(start.state, aimed.T)
+            plan.extra['holds'] = closing_margin(aimed)
+            return plan
         aimed.plan.extra['closes_in'] = aimed.at
         return aimed.plan
 

@@ -27,13 +27,15 @@ class Target:
     """What a goal asks for, in the arm's base frame: ``poses`` (4x4 arrays) are the pose (one), the path's
     poses, the apple's grasp pose (one) or a harvest's apples; ``method`` a pose or path goal's own method
     ('': the planner's); ``indices`` a harvest's apples' indices in its goal; ``follow`` a pick's apple in motion
-    (a :class:`~picking_core.moving_pick.Follow`: the pick is aimed where it will be), or None."""
+    (a :class:`~picking_core.moving_pick.Follow`: the pick is aimed where it will be), or None; ``back_off`` why a
+    pick gives up (its plan goes home without closing), or ''."""
 
     kind: Kind
     poses: tuple
     method: str = ''
     indices: tuple = ()
     follow: object = field(default=None, compare=False)
+    back_off: str = ''
 
     def __post_init__(self):
         if not self.poses:

@@ -84,6 +84,7 @@ class GoalRunner:
         self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
         self._sway = {}                  # pick goal key -> SwayFit of its target's stamped places
         self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
+        self._holding = {}               # pick goal key -> when it first went to the stand-off to wait (wall clock)
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -101,15 +102,15 @@ class GoalRunner:
     def take(self, goal, content=None):
         """A new goal; ``content`` (compared with ==) tells the same goal sent again, answered again and not
         planned twice (None: never a resend, or told apart by :meth:`resent` before)."""
-        self._end_paused()
         if content is not None and self.resent(goal, content):
             return
+        if goal.kind == Kind.PICK and self._same_apple(goal):
+            return
+        self._end_paused()
         try:
             self.port.goal_planner().check(goal.target)
         except ValueError as exc:
             self.end(goal, Ending(Outcome.REFUSED, str(exc)))
-            return
-        if goal.kind == Kind.PICK and self._same_apple(goal):
             return
         if goal.kind == Kind.PICK:
             self._sway[goal.key] = SwayFit()
@@ -152,8 +153,8 @@ class GoalRunner:
 
     def _place(self, key, pose, stamp):
         """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted.
-        Returns ``(follow, why)``: the Follow that aims the pick where the apple will be (None while it does not
-        sway), or why the place is refused (stamped ahead of the clock, older than the newest place, or far from
+        Returns ``(follow, why)``: the Follow that aims the pick where the apple will be (None while its places are
+        too few to tell how it moves), or why the place is refused (stamped ahead of the clock, older than the newest place, or far from
         where the apple's sway puts it then: another apple taken for it)."""
         fit = self._sway.get(key)
         if fit is None:
@@ -164,14 +165,15 @@ class GoalRunner:
         motion = fit.fit()
         if motion is not None and motion.frequency > 0.0 and t >= fit.t:
             off = float(np.linalg.norm(p - fit.predict(t)[0]))
-            if off > SAME_APPLE:
+            # (Near the newest place it is the same apple all the same: a sway fitted wrongly must not lock it out.)
+            if off > SAME_APPLE and np.linalg.norm(p - fit.newest) > SAME_APPLE:
                 return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
         if not fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2):
             return None, 'its place is stamped before the newest one taken (out of order)'
         motion = fit.fit()
-        if motion is None or motion.frequency <= 0.0:
-            return None, None
-        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key)), None
+        if motion is None or (motion.frequency <= 0.0 and motion.span < fit.s.min_span):
+            return None, None                 # too few places to tell how it moves: aimed at the latest
+        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key), key in self._holding), None
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
@@ -182,6 +184,9 @@ class GoalRunner:
         goal = self._retargetable()
         if goal is None:
             return 'no pose or pick goal runs to move'
+        if goal.target.back_off:
+            self._moved(goal.key, 'refused')
+            return f'the pick backs off home: {goal.target.back_off}'
         self._paused.pop(goal.key, None)
         follow = None
         if goal.kind == Kind.PICK:
@@ -270,6 +275,7 @@ class GoalRunner:
         at rest whose stream has paused long enough."""
         self._serve_waiting()
         self._end_paused(self.port.wall())
+        self._holds_over()
         for flight in self.lifecycle.results_to_ask(self.port.wall(), self.schedule_now()):
             self.port.ask_result(flight)
         for flight, ending in self.lifecycle.overdue(self.port.wall(), self.schedule_now()):
@@ -330,10 +336,43 @@ class GoalRunner:
         self.port.send(flight, points, start.time)
         if 'closes_in' in planned.plan.extra:
             self._closes[goal.key] = planned_at + planned.plan.extra['closes_in']
+            self._holding.pop(goal.key, None)
+        if 'holds' in planned.plan.extra:
+            self._hold(flight, planned.plan.extra['holds'])
         # (A stream of re-targets is said on planner_status: the log says each goal's first plan.)
         self.port.log('DEBUG' if goal.retargets else 'INFO',
                       f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
                       f'{start.words()}, planned in {took * 1e3:.1f} ms')
+
+    def _hold(self, flight, margin):
+        """``flight`` takes its pick to the stand-off to wait for a closing it is sure of (``margin`` m, what the
+        aim left inside the capture region): the closing instant is aimed afresh, and the wait starts the first
+        time."""
+        key = flight.goal.key
+        self._closes.pop(key, None)
+        if key not in self._holding:
+            self._holding[key] = self.port.wall()
+            limit = self.port.goal_planner().pick.hold_time
+            self._transition(flight, 'holding', f'the closing is not sure (the predicted centre {margin * 1e3:.1f} mm '
+                                                f'inside the fingers\' reach, one deviation off): it waits at the '
+                                                f'stand-off up to {limit:g} s', margin=margin)
+
+    def _holds_over(self):
+        """Picks that waited at the stand-off for the pick cycle's ``hold_time`` without a sure closing back off
+        home; the goal ends aborted when they are there."""
+        limit = self.port.goal_planner().pick.hold_time
+        for key, since in list(self._holding.items()):
+            if self.port.wall() - since < limit:
+                continue
+            del self._holding[key]
+            if key in self._paused:
+                goal = self._paused.pop(key)[0]
+            elif key in self.lifecycle.flights:
+                goal = self.lifecycle.flights[key].goal
+            else:
+                continue
+            why = f'no closing on the moving apple was sure in {limit:g} s at the stand-off'
+            self._handle(goal.again(target=replace(goal.target, follow=None, back_off=why), attempt=0))
 
     def _plan(self, goal, planner):
         """``(start, planned, t0)``: where the plan starts, the plan, and the ROS time it is expected to start at."""
@@ -463,6 +502,9 @@ class GoalRunner:
     def _learnt_start(self, flight):
         if self.running is not None and self.running.key == flight.serial:
             self.running = replace(self.running, start=flight.start)
+        if 'closes_in' in flight.planned.plan.extra and flight.goal.key in self._closes:
+            # (A plan the controller bridged to runs later than planned: its fingers close later too.)
+            self._closes[flight.goal.key] = flight.start + self.timing.delay + flight.planned.plan.extra['closes_in']
         run = self.harvests.get(flight.goal.key)
         if run is not None and run.start is None:
             run.start = run.first = flight.start
@@ -476,10 +518,17 @@ class GoalRunner:
                 self.timing.delay = 0.0               # the arm holds with nothing scheduled: no delay left
         if ending is None:
             return
+        goal = flight.goal
+        if ending.outcome == Outcome.SUCCEEDED and goal.target.back_off:
+            ending = Ending(Outcome.ABORTED, f'{goal.target.back_off}: it backed off home without closing')
         if ending.late:
             self._late(flight, ending)
-        elif ending.outcome == Outcome.SUCCEEDED and flight.goal.kind == Kind.POSE and flight.goal.retargets:
-            self._paused[flight.goal.key] = (flight.goal, ending, flight.duration, self.port.wall() + STREAM_PAUSE)
+        elif ending.outcome == Outcome.SUCCEEDED and goal.kind == Kind.POSE and goal.retargets:
+            self._paused[goal.key] = (goal, ending, flight.duration, self.port.wall() + STREAM_PAUSE)
+        elif ending.outcome == Outcome.SUCCEEDED and goal.key in self._holding:
+            # At rest at the stand-off: the pick waits there for a sure closing (or its hold ends).
+            self._paused[goal.key] = (goal, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited at the '
+                                                  'stand-off'), flight.duration, math.inf)
         else:
             self.end(flight.goal, ending, flight.duration)
 
@@ -521,6 +570,9 @@ class GoalRunner:
         if goal.rest is not None and running is not None and running.handle is not None:
             self._stop(running, f'{goal.rest.why}, and the rest could not be planned again around it ({why})')
             return
+        if goal.target is not None and goal.target.back_off:
+            self.end(goal, Ending(Outcome.ABORTED, f'{goal.target.back_off}, and it could not back off home: {why}'))
+            return
         if goal.retargets and running is not None:
             self._moved(goal.key, 'refused')
             self.port.log('WARN', f'{goal.kind.value} goal {goal.key}: its new target was refused ({why}); the plan '
@@ -539,7 +591,7 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
-        for remembered in (self._sway, self._closes):
+        for remembered in (self._sway, self._closes, self._holding):
             remembered.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
