@@ -14,8 +14,9 @@ holds, as it does once the final straight approach has begun (a new plan would h
 
 :func:`sure` is the closing rule: the fingers close only where the predicted centre, one standard deviation of the
 prediction taken off (:func:`closing_margin`), stays inside their capture region. The prediction's
-covariance holds the fit's own uncertainty and how far the apple strays from a steady sway, so it is wide: one
-standard deviation of it is about the spread of the misses. The rule judges the aims that decide the closing
+covariance holds the fit's own uncertainty (its frequency's too) and how far the apple strays from a steady sway: for
+a steady sway one standard deviation of it is about the spread of the misses; a gust after the deciding aim is not
+foreseen. The rule judges the aims that decide the closing
 (:func:`holds_off`: the straight approach begins within ``DECIDE``); an earlier aim, a second or so ahead, is always
 less sure and is refined by the detections still to come. A pick whose deciding aim is not sure goes to the stand-off
 (P1) and holds there, aimed again at each detection, until an aim is sure (the pick then goes on from where the arm

@@ -10,8 +10,8 @@ playback's). Three ways to aim:
 
 - ``predicted``: where the fit says the apple will be when the fingers close (:func:`~picking_core.moving_pick.aim`),
   planned again at each detection until the final straight approach begins; an aim that decides the closing and is
-  not sure of it (:func:`~picking_core.moving_pick.holds_off`) goes to the stand-off instead and waits there for a sure one, backing off
-  home after the cycle's ``hold_time``, as the planner does;
+  not sure of it (:func:`~picking_core.moving_pick.decide`) goes to the stand-off instead and waits there for a sure
+  one, backing off home after the cycle's ``hold_time``, as the planner does;
 - ``latest``: the latest detection, planned again the same way (tracking without prediction);
 - ``fixed``: the latest detection when the pick starts, never planned again (no tracking).
 """

@@ -154,8 +154,9 @@ class GoalRunner:
     def _place(self, key, pose, stamp):
         """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted.
         Returns ``(follow, why)``: the Follow that aims the pick where the apple will be (None while its places are
-        too few to tell how it moves), or why the place is refused (stamped ahead of the clock, older than the newest place, or far from
-        where the apple's sway puts it then: another apple taken for it)."""
+        too few to tell how it moves), or why the place is refused (stamped ahead of the clock, older than the newest
+        place, or far from both the newest place and where the apple's sway puts it then: another apple taken for
+        it)."""
         fit = self._sway.get(key)
         if fit is None:
             return None, None
@@ -360,6 +361,8 @@ class GoalRunner:
     def _holds_over(self):
         """Picks that waited at the stand-off for the pick cycle's ``hold_time`` without a sure closing back off
         home; the goal ends aborted when they are there."""
+        if not self._holding:
+            return
         limit = self.port.goal_planner().pick.hold_time
         for key, since in list(self._holding.items()):
             if self.port.wall() - since < limit:
