@@ -21,6 +21,9 @@ from .errors import Unreachable
 #: The joint spline between two IK samples is checked (the tool's deviation from the path, the
 #: joints' peaks and limits) at least this often, s, and at least at the quarters of each interval.
 CHECK_STEP = 0.0025
+#: The most IK samples a path may take: a path longer than that many sample periods is refused (one timed
+#: over hours would take gigabytes and minutes).
+MAX_SAMPLES = 100_000
 
 
 def pose_matrix(position, quaternion=(0.0, 0.0, 0.0, 1.0)):
@@ -107,6 +110,8 @@ def cartesian_to_joint(arm, path, seed, dt=0.01, max_joint_step=0.25, singular_t
     """
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f'dt must be a positive number of seconds, got {dt}')
+    if not path.duration / dt <= MAX_SAMPLES:
+        raise ValueError(f'the path lasts {path.duration:g} s: over {MAX_SAMPLES} samples of {dt:g} s (refused)')
     n = max(int(np.ceil(path.duration / dt - 1e-9)), 1) + 1
     # The samples, and the points between them where the spline is not pinned by IK: one
     # sampling of the path for both.
