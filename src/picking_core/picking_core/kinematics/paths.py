@@ -21,8 +21,8 @@ from .errors import Unreachable
 #: The joint spline between two IK samples is checked (the tool's deviation from the path, the
 #: joints' peaks and limits) at least this often, s, and at least at the quarters of each interval.
 CHECK_STEP = 0.0025
-#: The most IK samples a path may take: a path longer than that many sample periods is refused (one timed
-#: over hours would take gigabytes and minutes).
+#: The most IK samples a path may take: a path longer than that many sample periods is refused before it is
+#: sampled (one timed over hours would otherwise be sampled and solved sample by sample first).
 MAX_SAMPLES = 100_000
 
 
