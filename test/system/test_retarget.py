@@ -10,6 +10,7 @@ from rosstack import ARM, BURST, DOWN, make_pose, settles_at, shared_stack
 
 from picking_common.status import status_values
 from picking_core.goals.intake import ZERO_KEY
+from picking_core.goals.runner import STREAM_PAUSE
 
 NS = '/retarget'
 RATE = 30.0
@@ -39,12 +40,13 @@ def test_a_30_hz_stream_of_retargets_is_spliced_or_replaced_and_the_arm_ends_at_
     goal = client.send_pose(circle(0).tolist())
     key = f'{goal.header.stamp.sec}.{goal.header.stamp.nanosec:09d}'
     client.planner_answer(mark)
-    sent, start = 0, time.monotonic()
+    sent, start, times = 0, time.monotonic(), []
     while time.monotonic() - start < SECONDS:
         sent += 1
         msg = PoseStamped(pose=make_pose(circle(sent).tolist(), DOWN))
         msg.header.frame_id = 'base_link'
         retarget.publish(msg)
+        times.append(time.monotonic())
         time.sleep(max(0.0, start + sent / RATE - time.monotonic()))
     end = client.wait_for(lambda: [status_values(m) for _, m in client.planner_status[mark['planner']:]
                                    if status_values(m).get('goal') == key
@@ -54,9 +56,14 @@ def test_a_30_hz_stream_of_retargets_is_spliced_or_replaced_and_the_arm_ends_at_
     # Every update was taken: spliced on, or replaced by a newer one before it was planned; none refused. How
     # many are spliced depends on how fast the machine plans (a loaded one replaces more): a good share is.
     counts = {k: int(end[f'retargets_{k}']) for k in ('received', 'spliced', 'replaced', 'refused')}
-    assert counts['received'] == sent and counts['refused'] == 0, counts
-    assert counts['spliced'] + counts['replaced'] == sent and counts['spliced'] >= sent // 10, counts
-    settles_at(client, circle(sent).tolist(), tolerance=1e-3, timeout=10.0)
+    # A host that stalls this test's own publisher longer than the planner's stream pause has paused the stream:
+    # the goal then ends at rest, every update sent before the pause taken, the later ones answered "not taken".
+    gaps = np.diff(times)
+    paused = int(np.argmax(gaps)) + 1 if gaps.max() > STREAM_PAUSE else sent
+    assert paused <= counts['received'] <= sent and counts['refused'] == 0, (counts, f'pause after {paused}')
+    last = counts['received']
+    assert counts['spliced'] + counts['replaced'] == last and counts['spliced'] >= last // 10, counts
+    settles_at(client, circle(last).tolist(), tolerance=1e-3, timeout=10.0)
     # The reference stayed within the limits throughout, and the controller never had to limit it.
     with client.lock:
         commands = [m for _, m in client.commands[mark['commands']:]]

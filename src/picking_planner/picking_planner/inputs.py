@@ -80,6 +80,13 @@ class GoalInputs:
             return
         self.runner.take(goal, content=msg)
 
+    def retarget_waiting(self):
+        """Handle a re-target that is waiting. The executor runs timers before subscriptions: the runner's tick,
+        which ends a re-targeted goal whose stream has paused, must first see the update that already came."""
+        got = self.sub_retarget.handle.take_message(self.sub_retarget.msg_type, self.sub_retarget.raw)
+        if got is not None:
+            self._on_retarget(got[0])
+
     def _on_retarget(self, msg):
         msg = newest_waiting(self.sub_retarget, msg, lambda _: self.runner.count_replaced())
         try:

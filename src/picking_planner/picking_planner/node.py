@@ -81,7 +81,7 @@ class PlannerNode(Node):
         self.seen = SeenApples(self, self.runner, lambda header, timeout: self.in_base(header, 'detections', timeout),
                                MapSettings())
         self.seen.branches(self.world.scene.rods())
-        self.create_timer(0.1, self.runner.tick)
+        self.create_timer(0.1, self._tick)
         # The world: a scene replaced whole by a latched MarkerArray, and the canopy by each cloud, built into its
         # octree on a thread of its own (a camera's clouds never wait for a plan, nor a plan for them).
         self.create_subscription(MarkerArray, 'scene', self._on_scene, LATCHED)
@@ -94,6 +94,10 @@ class PlannerNode(Node):
         self.get_logger().info(f'planning for {self.arm.name} ({self.arm.dof} joints, IK: {self.arm.solver}); method '
                                f'{s.method}, path_method {s.path_method}, speed_scale {s.speed_scale}; avoiding '
                                f'{self.world.words()}')
+
+    def _tick(self):
+        self.inputs.retarget_waiting()
+        self.runner.tick()
 
     def _check_home(self, home):
         """A home (P0) in collision is refused (at start, or as a new parameter value), with what it touches."""
