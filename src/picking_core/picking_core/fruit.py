@@ -363,7 +363,8 @@ class FruitWorld:
                 self._grip[int(i)] = local[i]
                 self.fate[i] = Fate.GRASPED
                 self._caught = True
-                events.append(self._event(t, int(i), 'grasped', f'the fingers closed on it at {opening * 100:.1f} cm'))
+                events.append(self._event(t, int(i), 'grasped', f'the fingers closed on it at {opening * 100:.1f} cm, '
+                                          f'its centre {np.linalg.norm(local[i]) * 1e3:.1f} mm from the grasp point'))
         if closing and not self._closing:            # a closure starts from the opening before
             self._closed_from = before
         if self._closing and not closing:            # a closure ended: a real one (not a drive's settling) caught?

@@ -215,3 +215,30 @@ class SwayFit:
         stray = np.maximum((r * r).mean(axis=1), (r[:, recent] ** 2).mean(axis=1)) - v.mean(axis=0)
         rms = np.sqrt(np.maximum(0.0, stray)) if n > p else np.zeros(3)
         return Fit(coeffs, cov, float(f), self.t, rms, float(t[-1] - t[0]) if n else 0.0)
+
+
+class Sightings:
+    """A camera's recent frames: each one's stamp (s) and the apples' centres it saw ((N, 3) m), the last
+    ``window`` s of them. A pick's goal comes after the camera has watched its apple for a while: those frames
+    fit its motion at once, instead of from the goal on."""
+
+    def __init__(self, window=SwaySettings().window):
+        self.window = window
+        self._frames = collections.deque()
+
+    def add(self, t, places):
+        self._frames.append((float(t), np.asarray(places, float).reshape(-1, 3)))
+        while self._frames[0][0] < t - self.window:
+            self._frames.popleft()
+
+    def of(self, p, radius):
+        """``(t, centre)`` of the apple nearest ``p`` (3,) in each frame, where one is within ``radius`` m,
+        oldest first."""
+        out = []
+        for t, places in self._frames:
+            if len(places):
+                d = np.linalg.norm(places - np.asarray(p, float), axis=1)
+                k = int(np.argmin(d))
+                if d[k] <= radius:
+                    out.append((t, places[k]))
+        return out

@@ -530,3 +530,52 @@ def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_w
     runner.take(ahead_goal)
     assert port.states('ahead') == ['refused'] and 'ahead of the clock' in port.statuses[-1]['text']
 
+
+
+def _camera(runner, port, seconds, where, rng, neighbour=(0.70, 0.30, 0.65)):
+    """The camera's frames at 30 Hz for ``seconds``: the apple at ``where(t)`` and a still neighbour, 3 mm noise."""
+    for _ in range(int(seconds * 30)):
+        port.t += 1 / 30
+        port.t_wall += 1 / 30
+        places = np.array([where(port.t), neighbour]) + rng.normal(0.0, 0.003, (2, 3))
+        runner.seen(places, f'{port.t:.9f}')
+        if port.sent and port.sent[-1][0].state.name == 'SENT':
+            accept(runner, port)
+
+
+def test_a_pick_of_a_swaying_apple_the_camera_sees_is_aimed_from_its_first_plan_and_follows_it(port):
+    """The camera watched the apple sway before the pick came (sent where it hangs at rest, unstamped): its
+    frames fit the sway at once, so the first plan already closes the fingers where the apple will be; the
+    frames during the pick move it on, as a stream of its places on the topic would."""
+    rng = np.random.default_rng(1)
+    runner = GoalRunner(port)
+    _camera(runner, port, 2.0, _swaying, rng)
+    assert not port.sent                                             # frames alone move nothing
+    T = _pick_at('p', 0.0).target.pose.copy()
+    T[:3, 3] = (0.70, 0.15, 0.65)
+    runner.take(Goal(Kind.PICK, 'p', Target(Kind.PICK, (T,)), port.t_wall))
+    first = accept(runner, port)
+    assert 'closes_in' in first.planned.plan.extra
+    # (Stamped 0, from the controller's reference: it starts when planned to, as its feedback then says.)
+    port.t = runner._closes['p'] - first.planned.plan.extra['closes_in']
+    runner.on_feedback(first, port.t, 0.0, 0.0)
+    assert _closing_miss(port, first) < 0.005
+    _camera(runner, port, 0.5, _swaying, rng)
+    assert runner._moves['p']['received'] >= 10 and all(f.goal.key == 'p' for f, _, _ in port.sent)
+    assert _closing_miss(port, port.sent[-1][0]) < 0.005
+
+
+def test_a_pick_of_a_still_apple_the_camera_sees_keeps_the_plan_it_was_sent(port):
+    rng = np.random.default_rng(2)
+    runner = GoalRunner(port)
+    _camera(runner, port, 2.0, lambda t: np.array([0.70, 0.15, 0.65]), rng)
+    T = _pick_at('p', 0.0).target.pose.copy()
+    T[:3, 3] = (0.70, 0.15, 0.65)
+    runner.take(Goal(Kind.PICK, 'p', Target(Kind.PICK, (T,)), port.t_wall))
+    first = accept(runner, port)
+    runner.on_feedback(first, port.t, 0.0, 0.0)
+    _camera(runner, port, 0.5, lambda t: np.array([0.70, 0.15, 0.65]), rng)
+    assert len(port.sent) == 1 and 'closes_in' not in first.planned.plan.extra and 'p' not in runner._moves
+    arm, grasp = port.planner.planner.arm, first.planned.plan.extra['grasp_start']
+    assert arm.fk(first.planned.plan.trajectory.sample([grasp])[0][0][:arm.dof])[:3, 3] == pytest.approx(T[:3, 3],
+                                                                                                    abs=1e-6)

@@ -27,7 +27,7 @@ from ..collision import STEP as COLLISION_STEP
 from ..harvest import HarvestRun
 from ..kinematics.paths import check_joint_limits
 from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
-from ..sway import SwayFit
+from ..sway import Sightings, SwayFit
 from ..trajectory import waypoints
 from .intake import WAIT_LIMIT, ZERO_KEY, GoalBook, Waiting
 from .lifecycle import LATE_REPLANS, Ending, Flight, Lifecycle, Outcome, State
@@ -85,6 +85,7 @@ class GoalRunner:
         self._sway = {}                  # pick goal key -> SwayFit of its target's stamped places
         self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
         self._holding = {}               # pick goal key -> when it first went to the stand-off to wait (wall clock)
+        self.sightings = Sightings()     # the camera's recent frames (:meth:`seen`)
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -113,18 +114,24 @@ class GoalRunner:
             self.end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
         if goal.kind == Kind.PICK:
-            self._sway[goal.key] = SwayFit()
-            why = self._place(goal.key, goal.target.pose, goal.stamp)[1]
+            fit = self._sway[goal.key] = SwayFit()
+            for t, p in self.sightings.of(goal.target.pose[:3, 3], SAME_APPLE):
+                fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2)
+            # (Where the camera saw the apple, the sender's place of it is a rough one beside those.)
+            noise = STREAM_NOISE if fit.newest is None else SAME_APPLE
+            follow, why = self._place(goal.key, goal.target.pose, self._stamp_time(goal.stamp), noise)
             if why is not None:
                 self.end(goal, Ending(Outcome.REFUSED, why.replace('its place', 'the apple', 1)))
                 return
+            if self._sways(goal.key):
+                goal = goal.again(target=replace(goal.target, follow=follow))
         self._handle(goal)
 
     def _same_apple(self, goal):
         """A pick sent on the topic near the running topic pick's target moves that pick on (True: answered here)."""
         running = self._retargetable()
         if goal.feedback is not None or running is None or running.kind != Kind.PICK or running.feedback is not None \
-                or not self._near_apple(running, goal.target.pose[:3, 3], goal.stamp):
+                or not self._near_apple(running, goal.target.pose[:3, 3], self._stamp_time(goal.stamp)):
             return False
         why = self.retarget(goal.target.pose, goal.came, goal.stamp)
         if why is not None and why.startswith('its place'):
@@ -134,12 +141,12 @@ class GoalRunner:
             self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key}: {taken}'))
         return True
 
-    def _near_apple(self, running, p, stamp):
-        """Whether ``p`` seen at ``stamp`` is the apple of pick ``running``: within SAME_APPLE of its latest place, or of
-        where its sway puts it then (a stream that stalled finds it farther on)."""
+    def _near_apple(self, running, p, t):
+        """Whether ``p`` seen at ``t`` (s, the port's clock) is the apple of pick ``running``: within SAME_APPLE of its
+        latest place, or of where its sway puts it then (a stream that stalled finds it farther on)."""
         fit = self._sway.get(running.key)
         places = [running.target.pose[:3, 3] if fit is None or fit.newest is None else fit.newest]
-        predicted = fit.predict(self._stamp_time(stamp)) if fit is not None else None
+        predicted = fit.predict(t) if fit is not None else None
         if predicted is not None:
             places.append(predicted[0])
         return min(np.linalg.norm(np.asarray(q) - p) for q in places) <= SAME_APPLE
@@ -151,8 +158,8 @@ class GoalRunner:
         sec, nsec = stamp.split('.')
         return self.port.seconds(int(sec) * 1_000_000_000 + int(nsec))
 
-    def _place(self, key, pose, stamp):
-        """Pick ``key``'s apple seen at ``pose`` at ``stamp`` (its message's; else now): its motion fitted.
+    def _place(self, key, pose, t, noise=STREAM_NOISE):
+        """Pick ``key``'s apple seen at ``pose`` at ``t`` (s, the port's clock), ``noise`` m: its motion fitted.
         Returns ``(follow, why)``: the Follow that aims the pick where the apple will be (None while its places are
         too few to tell how it moves), or why the place is refused (stamped ahead of the clock, older than the newest
         place, or far from both the newest place and where the apple's sway puts it then: another apple taken for
@@ -160,7 +167,7 @@ class GoalRunner:
         fit = self._sway.get(key)
         if fit is None:
             return None, None
-        t, p = self._stamp_time(stamp), np.asarray(pose, float)[:3, 3]
+        p = np.asarray(pose, float)[:3, 3]
         if t > self.port.now() + AHEAD:
             return None, f'its place is stamped {t - self.port.now():.3f} s ahead of the clock'
         motion = fit.fit()
@@ -169,7 +176,7 @@ class GoalRunner:
             # (Near the newest place it is the same apple all the same: a sway fitted wrongly must not lock it out.)
             if off > SAME_APPLE and np.linalg.norm(p - fit.newest) > SAME_APPLE:
                 return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
-        if not fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2):
+        if not fit.update(t, p, np.eye(3) * noise ** 2):
             return None, 'its place is stamped before the newest one taken (out of order)'
         motion = fit.fit()
         if motion is None or (motion.frequency <= 0.0 and motion.span < fit.s.min_span):
@@ -188,13 +195,45 @@ class GoalRunner:
         if goal.target.back_off:
             self._moved(goal.key, 'refused')
             return f'the pick backs off home: {goal.target.back_off}'
-        self._paused.pop(goal.key, None)
         follow = None
         if goal.kind == Kind.PICK:
-            follow, why = self._place(goal.key, pose, stamp)
+            follow, why = self._place(goal.key, pose, self._stamp_time(stamp))
             if why is not None:
                 self._moved(goal.key, 'refused')
                 return why
+        return self._move(goal, pose, follow, wall, stamp)
+
+    def seen(self, places, stamp):
+        """The camera's apples in one frame: their centres ``places`` (N, 3), m in the arm's base, captured at
+        ``stamp`` (the frame's, as text). The running pick's apple among them (the nearest, if it is that apple) is
+        one more place of it, as a stream's on the topic is; once its places show it swaying, each moves the pick
+        on (:meth:`retarget`). A still apple's pick keeps its plan."""
+        t = self._stamp_time(stamp)
+        self.sightings.add(t, places)
+        goal = self._retargetable()
+        if goal is None or goal.kind != Kind.PICK or goal.target.back_off or not len(places):
+            return
+        fit = self._sway.get(goal.key)
+        if fit is None:
+            return
+        near = fit.newest if fit.newest is not None else goal.target.pose[:3, 3]
+        p = np.asarray(places, float)[int(np.argmin(np.linalg.norm(np.asarray(places, float) - near, axis=1)))]
+        if not self._near_apple(goal, p, t):
+            return
+        pose = goal.target.pose.copy()
+        pose[:3, 3] = p
+        follow, why = self._place(goal.key, pose, t)
+        if why is None and follow is not None and self._sways(goal.key):
+            self._move(goal, pose, follow, self.port.wall(), stamp)
+
+    def _sways(self, key):
+        """Whether pick ``key``'s places show its apple swaying."""
+        fit = self._sway[key].fit()
+        return fit is not None and fit.frequency > 0.0
+
+    def _move(self, goal, pose, follow, wall, stamp):
+        """Re-target running ``goal`` to ``pose`` aimed by ``follow`` (a pick's): None, or why it was not taken."""
+        self._paused.pop(goal.key, None)
         flight = self.lifecycle.flights.get(goal.key)
         if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
                 flight.elapsed >= final_approach(flight.planned.plan):
