@@ -133,13 +133,15 @@ class Wind:
 @dataclass
 class Event:
     """Something that happened to apple ``index`` at ``t``: ``kind`` (grasped, detached, released on the tree,
-    released, in the box, dropped, missed grasp, knocked, knocked off, bruised) at ``where``, in ``words``."""
+    released, in the box, dropped, missed grasp, knocked, knocked off, bruised) at ``where``, in ``words``; a grasp's
+    ``offset``: m from the grasp point to the apple's centre as the fingers took it."""
 
     t: float
     index: int
     kind: str
     where: np.ndarray
     words: str
+    offset: float | None = None
 
 
 class FruitWorld:
@@ -363,8 +365,9 @@ class FruitWorld:
                 self._grip[int(i)] = local[i]
                 self.fate[i] = Fate.GRASPED
                 self._caught = True
+                offset = float(np.linalg.norm(local[i]))
                 events.append(self._event(t, int(i), 'grasped', f'the fingers closed on it at {opening * 100:.1f} cm, '
-                                          f'its centre {np.linalg.norm(local[i]) * 1e3:.1f} mm from the grasp point'))
+                                          f'its centre {offset * 1e3:.1f} mm from the grasp point', offset))
         if closing and not self._closing:            # a closure starts from the opening before
             self._closed_from = before
         if self._closing and not closing:            # a closure ended: a real one (not a drive's settling) caught?
@@ -439,6 +442,6 @@ class FruitWorld:
             self.bruised[i] = True
             events.append(self._event(t, i, 'bruised', f'{how} at {speed:.2f} m/s (bruising above {limit:g} m/s)'))
 
-    def _event(self, t, i, kind, words):
-        return Event(t, int(i), kind, self.p[i].copy(), f'apple {i}: {kind}: {words}')
+    def _event(self, t, i, kind, words, offset=None):
+        return Event(t, int(i), kind, self.p[i].copy(), f'apple {i}: {kind}: {words}', offset)
 

@@ -218,27 +218,27 @@ class SwayFit:
 
 
 class Sightings:
-    """A camera's recent frames: each one's stamp (s) and the apples' centres it saw ((N, 3) m), the last
-    ``window`` s of them. A pick's goal comes after the camera has watched its apple for a while: those frames
-    fit its motion at once, instead of from the goal on."""
+    """A camera's recent frames: each one's stamp (s), the apples' centres it saw ((N, 3) m) and their diameters
+    ((N,) m), the last ``window`` s of them. A pick's goal comes after the camera has watched its apple for a while:
+    those frames fit its motion at once, instead of from the goal on."""
 
     def __init__(self, window=SwaySettings().window):
         self.window = window
         self._frames = collections.deque()
 
-    def add(self, t, places):
-        self._frames.append((float(t), np.asarray(places, float).reshape(-1, 3)))
+    def add(self, t, places, diameters):
+        self._frames.append((float(t), np.asarray(places, float).reshape(-1, 3), np.asarray(diameters, float)))
         while self._frames[0][0] < t - self.window:
             self._frames.popleft()
 
     def of(self, p, radius):
-        """``(t, centre)`` of the apple nearest ``p`` (3,) in each frame, where one is within ``radius`` m,
-        oldest first."""
+        """``(t, centre, diameter)`` of the apple nearest ``p`` (3,) in each frame, where one is within ``radius``
+        m, oldest first."""
         out = []
-        for t, places in self._frames:
+        for t, places, diameters in self._frames:
             if len(places):
                 d = np.linalg.norm(places - np.asarray(p, float), axis=1)
                 k = int(np.argmin(d))
                 if d[k] <= radius:
-                    out.append((t, places[k]))
+                    out.append((t, places[k], diameters[k]))
         return out

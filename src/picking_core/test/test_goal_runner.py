@@ -533,12 +533,13 @@ def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_w
 
 
 def _camera(runner, port, seconds, where, rng, neighbour=(0.70, 0.30, 0.65)):
-    """The camera's frames at 30 Hz for ``seconds``: the apple at ``where(t)`` and a still neighbour, 3 mm noise."""
+    """The camera's frames at 30 Hz for ``seconds``: the apple (8 cm wide) at ``where(t)`` and a still neighbour
+    (7 cm), 3 mm noise."""
     for _ in range(int(seconds * 30)):
         port.t += 1 / 30
         port.t_wall += 1 / 30
         places = np.array([where(port.t), neighbour]) + rng.normal(0.0, 0.003, (2, 3))
-        runner.seen(places, f'{port.t:.9f}')
+        runner.seen(places, [0.08, 0.07] + rng.normal(0.0, 0.003, 2), f'{port.t:.9f}')
         if port.sent and port.sent[-1][0].state.name == 'SENT':
             accept(runner, port)
 
@@ -555,7 +556,8 @@ def test_a_pick_of_a_swaying_apple_the_camera_sees_is_aimed_from_its_first_plan_
     T[:3, 3] = (0.70, 0.15, 0.65)
     runner.take(Goal(Kind.PICK, 'p', Target(Kind.PICK, (T,)), port.t_wall))
     first = accept(runner, port)
-    assert 'closes_in' in first.planned.plan.extra
+    # (The fingers are timed to meet the width the camera sees, not a typical apple's.)
+    assert 'closes_in' in first.planned.plan.extra and first.goal.target.follow.width == pytest.approx(0.08, abs=2e-3)
     # (Stamped 0, from the controller's reference: it starts when planned to, as its feedback then says.)
     port.t = runner._closes['p'] - first.planned.plan.extra['closes_in']
     runner.on_feedback(first, port.t, 0.0, 0.0)
@@ -579,3 +581,27 @@ def test_a_pick_of_a_still_apple_the_camera_sees_keeps_the_plan_it_was_sent(port
     arm, grasp = port.planner.planner.arm, first.planned.plan.extra['grasp_start']
     assert arm.fk(first.planned.plan.trajectory.sample([grasp])[0][0][:arm.dof])[:3, 3] == pytest.approx(T[:3, 3],
                                                                                                     abs=1e-6)
+
+
+def test_a_moving_picks_re_plan_that_came_too_late_is_aimed_again_and_the_pick_still_ends(port):
+    """A re-target's plan the controller refused as late (its stamp past) leaves no plan of the goal's own to keep
+    the closing instant of: the pick is aimed afresh, its new plan sent, and it ends when that plan does."""
+    rng = np.random.default_rng(4)
+    runner = GoalRunner(port)
+    _camera(runner, port, 2.0, _swaying, rng)
+    T = _pick_at('p', 0.0).target.pose.copy()
+    T[:3, 3] = (0.70, 0.15, 0.65)
+    runner.take(Goal(Kind.PICK, 'p', Target(Kind.PICK, (T,)), port.t_wall))
+    first = accept(runner, port)
+    port.t = runner._closes['p'] - first.planned.plan.extra['closes_in']
+    runner.on_feedback(first, port.t, 0.0, 0.0)
+    for _ in range(24):                                         # into the approach, re-targeted frame by frame
+        _camera(runner, port, 1 / 30, _swaying, rng)
+        runner.on_feedback(port.sent[-1][0], port.t, port.t - first.start, 0.0)
+    late = port.sent[-1][0]
+    sent = len(port.sent)
+    runner.on_result(late, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.004 s in the past')
+    assert len(port.sent) == sent + 1 and port.sent[-1][0].goal.key == 'p', runner._moves['p']
+    again = accept(runner, port)
+    runner.on_result(again, 'succeeded', 0, '')
+    assert port.states('p')[-1] == 'succeeded'

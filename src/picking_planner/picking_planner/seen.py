@@ -50,7 +50,7 @@ class SeenApples:
         placed = positions @ R.T + T[:3, 3]
         covariances = R @ covariances @ R.T
         self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters, scores)
-        self.runner.seen(placed, stamp_key(msg.header.stamp))
+        self.runner.seen(placed, diameters, stamp_key(msg.header.stamp))
 
     def _refuse(self, why, n=1):
         self.refused[why] += n

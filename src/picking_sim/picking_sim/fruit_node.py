@@ -175,8 +175,9 @@ class FruitSim:
         else:
             log.info(text)
         x, y, z = (float(v) for v in e.where)
+        offset = {} if e.offset is None else {'offset': f'{e.offset:.5f}'}
         self.pub_events.publish(status('picking_sim', Level.WARN if bad else Level.OK, text, apple=e.index,
-                                       event=e.kind, t=f'{e.t:.3f}', x=x, y=y, z=z, **self.world.counts()))
+                                       event=e.kind, t=f'{e.t:.3f}', x=x, y=y, z=z, **offset, **self.world.counts()))
 
     def _truth(self):
         """The apples as spheres coloured by fate: one message, its markers updated in place (building them anew

@@ -14,6 +14,7 @@ The node implements the port (ROS messages, the action client, the clock) and ca
 
 from __future__ import annotations
 
+import collections
 import itertools
 import math
 import time
@@ -46,6 +47,8 @@ SAME_APPLE = 0.05
 STREAM_NOISE = 0.003
 #: s: a place stamped further ahead of the clock than this is refused (a sender's clock set wrong).
 AHEAD = 0.1
+#: The camera's newest diameters of a pick's apple whose median its fingers are timed to meet.
+WIDTHS = 60
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -86,6 +89,7 @@ class GoalRunner:
         self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
         self._holding = {}               # pick goal key -> when it first went to the stand-off to wait (wall clock)
         self.sightings = Sightings()     # the camera's recent frames (:meth:`seen`)
+        self._widths = {}                # pick goal key -> the diameters the camera saw its apple at, m
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -115,8 +119,9 @@ class GoalRunner:
             return
         if goal.kind == Kind.PICK:
             fit = self._sway[goal.key] = SwayFit()
-            for t, p in self.sightings.of(goal.target.pose[:3, 3], SAME_APPLE):
+            for t, p, diameter in self.sightings.of(goal.target.pose[:3, 3], SAME_APPLE):
                 fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2)
+                self._widths.setdefault(goal.key, collections.deque(maxlen=WIDTHS)).append(diameter)
             # (Where the camera saw the apple, the sender's place of it is a rough one beside those.)
             noise = STREAM_NOISE if fit.newest is None else SAME_APPLE
             follow, why = self._place(goal.key, goal.target.pose, self._stamp_time(goal.stamp), noise)
@@ -181,7 +186,10 @@ class GoalRunner:
         motion = fit.fit()
         if motion is None or (motion.frequency <= 0.0 and motion.span < fit.s.min_span):
             return None, None                 # too few places to tell how it moves: aimed at the latest
-        return Follow(fit.predict, APPLE_WIDTH, self._closes.get(key), key in self._holding), None
+        # (The fingers are timed to meet the apple's width: the camera's, where it saw the apple.)
+        widths = self._widths.get(key)
+        width = float(np.median(widths)) if widths else APPLE_WIDTH
+        return Follow(fit.predict, width, self._closes.get(key), key in self._holding), None
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
@@ -203,13 +211,13 @@ class GoalRunner:
                 return why
         return self._move(goal, pose, follow, wall, stamp)
 
-    def seen(self, places, stamp):
-        """The camera's apples in one frame: their centres ``places`` (N, 3), m in the arm's base, captured at
-        ``stamp`` (the frame's, as text). The running pick's apple among them (the nearest, if it is that apple) is
-        one more place of it, as a stream's on the topic is; once its places show it swaying, each moves the pick
-        on (:meth:`retarget`). A still apple's pick keeps its plan."""
+    def seen(self, places, diameters, stamp):
+        """The camera's apples in one frame: their centres ``places`` (N, 3), m in the arm's base, and
+        ``diameters`` (N,), m, captured at ``stamp`` (the frame's, as text). The running pick's apple among them
+        (the nearest, if it is that apple) is one more place of it, as a stream's on the topic is; once its places
+        show it swaying, each moves the pick on (:meth:`retarget`). A still apple's pick keeps its plan."""
         t = self._stamp_time(stamp)
-        self.sightings.add(t, places)
+        self.sightings.add(t, places, diameters)
         goal = self._retargetable()
         if goal is None or goal.kind != Kind.PICK or goal.target.back_off or not len(places):
             return
@@ -217,9 +225,11 @@ class GoalRunner:
         if fit is None:
             return
         near = fit.newest if fit.newest is not None else goal.target.pose[:3, 3]
-        p = np.asarray(places, float)[int(np.argmin(np.linalg.norm(np.asarray(places, float) - near, axis=1)))]
+        k = int(np.argmin(np.linalg.norm(np.asarray(places, float) - near, axis=1)))
+        p = np.asarray(places, float)[k]
         if not self._near_apple(goal, p, t):
             return
+        self._widths.setdefault(goal.key, collections.deque(maxlen=WIDTHS)).append(float(diameters[k]))
         pose = goal.target.pose.copy()
         pose[:3, 3] = p
         follow, why = self._place(goal.key, pose, t)
@@ -353,7 +363,13 @@ class GoalRunner:
             names = tuple(planned.plan.joint_names or planner.planner.arm.joint_names)
             points = self._points(planner, planned, start, names)
         except AimHolds:
-            self._moved(goal.key, 'held')             # a moving apple's pick keeps the plan it runs
+            if goal.key in self.lifecycle.flights:
+                self._moved(goal.key, 'held')         # a moving apple's pick keeps the plan it runs
+            else:
+                # No plan of its own runs to keep (its last came too late): aimed afresh, to close when it soonest can.
+                self._closes.pop(goal.key, None)
+                self._handle(goal.again(target=replace(goal.target, follow=replace(goal.target.follow,
+                                                                                   closes_at=None))))
             return
         except ValueError as exc:
             self.refuse(goal, str(exc))
@@ -633,7 +649,7 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
-        for remembered in (self._sway, self._closes, self._holding):
+        for remembered in (self._sway, self._closes, self._holding, self._widths):
             remembered.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
