@@ -8,7 +8,8 @@ paper's Sec. 3.1 arc as a second scenario, the same cycle planned with
 cubic, quintic and LSPB segments side by side, a tree harvested by the arm
 (scenario 3), a wider tree harvested by two arms (scenario 4,
 ``picking-stack --platform``), and a tree among branches harvested around them and
-once without collision checking (scenario 5). Exit code 0 only if every step worked.
+once without collision checking (scenario 5), and apples swaying in the simulator's wind, each picked as it moves
+(scenario 6). Exit code 0 only if every step worked.
 """
 
 from __future__ import annotations
@@ -240,6 +241,12 @@ def run_orchard(events, config, out, demo):
     return _section(out, events, 'orchard', *run_orchard_scenario(config, out, demo))
 
 
+def run_wind(events, config, out, demo):
+    """Scenario 6 after the others (their stacks stopped): its section appended to the report."""
+    from .demo_wind import run_wind_scenario
+    return _section(out, events, 'wind', *run_wind_scenario(config, out, demo))
+
+
 def _section(out, events, name, lines, files, checks):
     """A scenario's section appended to the report (its checks summed up in the log); its checks kept in ``events``; whether
     they all hold."""
@@ -270,7 +277,7 @@ def _numbers(value):
 
 #: What a run writes into --out (removed first, so that nothing left from an earlier run is taken for this one's).
 OUTPUTS = ('report.md', 'report.json', 'run.json', 'demo.mcap', 'joints.png', 'tracking_error.png', 'tool_path.png',
-           'harvest.png', 'platform.png', 'platform.mcap', 'orchard.png', 'orchard.mcap')
+           'harvest.png', 'platform.png', 'platform.mcap', 'orchard.png', 'orchard.mcap', 'wind.png', 'wind.mcap')
 #: Lines of each node's log quoted in the report of a failed run.
 LOG_TAIL = 30
 
@@ -329,6 +336,7 @@ def main(argv=None):
             report_ok = run_platform(rec, events, config, args.out, demo) and report_ok
         if not args.quick:
             report_ok = run_orchard(events, config, args.out, demo) and report_ok
+            report_ok = run_wind(events, config, args.out, demo) and report_ok
     else:
         failure_report(rec, events, args.out)
     summary = {'ok': bool(ok and report_ok), 'events': _numbers({k: v for k, v in events.items() if k != 'plan'}),

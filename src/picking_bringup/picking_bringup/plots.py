@@ -325,3 +325,25 @@ def plot_viewer(path, links, moments, tool, world, title):
     ax.set_xlabel('x [m]'), ax.set_ylabel('y [m]'), ax.set_zlabel('z [m]')
     _equal_axes(ax, np.vstack(drawn))
     return _save_3d(plt, fig, ax, path, title)
+
+
+def plot_sway_picks(path, picks, title):
+    """Swaying apples picked: one panel per pick of ``picks`` (``(label, t_apple (N,), y_apple (N,), t_tool (M,),
+    y_tool (M,), t_closed or None)``, times in s from the grasp, y in mm across the approach): where the apple truly
+    was and where the grasp point went, the fingers' closing marked."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(picks), figsize=(4.2 * len(picks), 3.8), squeeze=False, sharey=True)
+    for ax, (label, ta, ya, tt, yt, closed) in zip(axes.flat, picks):
+        ax.plot(ta, ya, 'o-', color='tab:red', ms=3, label="the apple's centre (the simulator's truth)")
+        ax.plot(tt, yt, color='tab:blue', label='the grasp point (from joint_states)')
+        if closed is not None:
+            ax.axvline(closed, color='k', lw=0.8, ls='--', label='the fingers take the apple')
+        ax.set_title(label, fontsize='medium')
+        ax.set_xlabel('time from the grasp [s]')
+        ax.grid(True, alpha=0.3)
+    axes.flat[0].set_ylabel('across the approach (y) [mm]')
+    fig.suptitle(title)
+    legend_below(fig, axes.flat[0], ncol=3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -605,3 +605,20 @@ def test_a_moving_picks_re_plan_that_came_too_late_is_aimed_again_and_the_pick_s
     again = accept(runner, port)
     runner.on_result(again, 'succeeded', 0, '')
     assert port.states('p')[-1] == 'succeeded'
+
+
+@pytest.mark.parametrize('held, outcome', [(0.075, 'succeeded'), (None, 'aborted')])
+def test_a_pick_succeeds_only_when_the_measured_fingers_carried_its_apple(port, held, outcome):
+    """Fingers resting on the apple's width while they carry it: the pick succeeded; closed to their closed opening
+    (a closing beside the apple, an apple knocked off) they held nothing, and the pick ends aborted saying so."""
+    runner = GoalRunner(port)
+    runner.take(_pick_at('p', port.t))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    extra, closed = flight.planned.plan.extra, port.planner.pick.gripper_closed
+    for s in np.linspace(extra['grasp_end'] + 0.15, extra['release_start'], 5):
+        port.t, port.meas = flight.start + s, (HOME.copy(), held or closed + 0.0005)
+        runner.tick()
+    runner.on_result(flight, 'succeeded', 0, '')
+    assert port.states('p')[-1] == outcome
+    assert (outcome == 'aborted') == ('not in the fingers' in port.statuses[-1]['text'])

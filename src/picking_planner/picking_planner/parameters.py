@@ -111,7 +111,7 @@ PARAMS = (
           'arm\'s base', 's', (0.0, 10.0)),
     Param('reference_timeout', 0.1, "plan from the controller's reference (joint_commands) while it is this fresh, "
           'else from joint_states', 's', (0.001, 10.0)),
-    Param('grasp_check', True, "claim a harvest's apple picked only when the gripper's measured opening shows that "
+    Param('grasp_check', True, "claim a pick's or a harvest's apple picked only when the gripper's measured opening shows that "
           'it held something while it carried the apple (its fingers stopped short of their closed opening); else '
           "the apple is missed, with why. false: claimed by the plan's clock (a gripper that reports no opening; "
           'picking-stack sets it so when its simulator hangs no apples)'),

@@ -25,7 +25,7 @@ from typing import Protocol
 import numpy as np
 
 from ..collision import STEP as COLLISION_STEP
-from ..harvest import HarvestRun
+from ..harvest import GRIP_SETTLE, HOLDING_MARGIN, HarvestRun
 from ..kinematics.paths import check_joint_limits
 from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
 from ..sway import Sightings, SwayFit
@@ -90,6 +90,7 @@ class GoalRunner:
         self._holding = {}               # pick goal key -> when it first went to the stand-off to wait (wall clock)
         self.sightings = Sightings()     # the camera's recent frames (:meth:`seen`)
         self._widths = {}                # pick goal key -> the diameters the camera saw its apple at, m
+        self._grips = {}                 # pick goal key -> the narrowest opening measured while it carried its apple
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -336,6 +337,22 @@ class GoalRunner:
             else:
                 self.end(flight.goal, ending, flight.duration)
         self._harvest_progress()
+        self._pick_grips()
+
+    def _pick_grips(self):
+        """The fingers measured while a running pick's plan carries its apple (from the grasp's end to the
+        release): noted, to tell at its end whether they held it."""
+        measured = self.port.measured()
+        if not self.grasp_check or measured is None or measured[1] is None:
+            return
+        now = self.schedule_now()
+        for flight in self.lifecycle.flights.values():
+            extra = flight.planned.plan.extra
+            if flight.goal.kind != Kind.PICK or flight.start is None or 'release_start' not in extra:
+                continue
+            if extra['grasp_end'] + GRIP_SETTLE <= now - flight.start <= extra['release_start']:
+                key = flight.goal.key
+                self._grips[key] = min(self._grips.get(key, math.inf), float(measured[1]))
 
     def _serve_waiting(self):
         if self.waiting.goal is None:
@@ -579,6 +596,11 @@ class GoalRunner:
         goal = flight.goal
         if ending.outcome == Outcome.SUCCEEDED and goal.target.back_off:
             ending = Ending(Outcome.ABORTED, f'{goal.target.back_off}: it backed off home without closing')
+        grip = self._grips.get(goal.key)
+        if ending.outcome == Outcome.SUCCEEDED and grip is not None and \
+                grip < self.port.goal_planner().pick.gripper_closed + HOLDING_MARGIN:
+            ending = Ending(Outcome.ABORTED, f'the apple was not in the fingers: they closed to {grip * 100:.1f} cm '
+                                             'while they should have carried it (the arm went on home)')
         if ending.late:
             self._late(flight, ending)
         elif ending.outcome == Outcome.SUCCEEDED and goal.kind == Kind.POSE and goal.retargets:
@@ -649,7 +671,7 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
-        for remembered in (self._sway, self._closes, self._holding, self._widths):
+        for remembered in (self._sway, self._closes, self._holding, self._widths, self._grips):
             remembered.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
