@@ -26,6 +26,9 @@ import numpy as np
 
 #: s: a detection stamped this much before the newest one applied is out of order (refused).
 OUT_OF_ORDER = 1e-6
+#: m: how far apart one apple's places in consecutive frames may lie for noise alone (a camera's 3 mm, four
+#: deviations of the difference), and m/s: the fastest it sways (40 mm at 2 Hz).
+TRACK_GATE, TRACK_SPEED = 0.017, 0.5
 
 
 @dataclass(frozen=True)
@@ -232,13 +235,17 @@ class Sightings:
             self._frames.popleft()
 
     def of(self, p, radius):
-        """``(t, centre, diameter)`` of the apple nearest ``p`` (3,) in each frame, where one is within ``radius``
-        m, oldest first."""
-        out = []
-        for t, places, diameters in self._frames:
-            if len(places):
-                d = np.linalg.norm(places - np.asarray(p, float), axis=1)
-                k = int(np.argmin(d))
-                if d[k] <= radius:
-                    out.append((t, places[k], diameters[k]))
-        return out
+        """``(t, centre, diameter)`` of one apple in each frame that saw it, oldest first: followed back from the
+        newest frame's apple nearest ``p`` (3,) within ``radius`` m, each earlier frame's nearest to the place taken
+        after it, within TRACK_GATE m and the way an apple at TRACK_SPEED goes in between (an apple carried past by
+        the arm, another's, is not taken for it)."""
+        out, ref, after = [], np.asarray(p, float), None
+        for t, places, diameters in reversed(self._frames):
+            if not len(places):
+                continue
+            d = np.linalg.norm(places - ref, axis=1)
+            k = int(np.argmin(d))
+            if d[k] <= (radius if after is None else TRACK_GATE + TRACK_SPEED * (after - t)):
+                out.append((t, places[k], diameters[k]))
+                ref, after = places[k], t
+        return out[::-1]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from picking_core.fruit import FruitWorld, Wind
-from picking_core.sway import SwayFit
+from picking_core.sway import Sightings, SwayFit
 
 BOX = (np.array([-0.15, -0.70, -0.01]), np.array([0.25, -0.40, 0.17]))
 APPLE = np.array([0.70, 0.10, 0.60])
@@ -106,3 +106,19 @@ def test_the_fruit_map_predicts_each_tracked_apple_from_its_own_detections():
     assert np.linalg.norm(fruit_map.predict(swinging.id, ahead)[0] - p[np.searchsorted(t, ahead)]) < 0.006
     assert np.linalg.norm(fruit_map.predict(hanging.id, ahead)[0] - still) < 0.002
     assert hanging.motion.fit().frequency == 0.0 and fruit_map.predict(10 ** 6, ahead) is None
+
+
+def test_sightings_follow_one_apple_back_and_leave_out_one_carried_past_it():
+    """Frames of an apple swaying ±30 mm at 1 Hz: followed back from the newest frame. In one frame it is hidden
+    while another apple (carried by the arm) passes 4 cm from where it hangs: that one is not taken for it."""
+    sightings = Sightings(window=2.0)
+    rest = np.array([0.7, 0.15, 0.65])
+    for k in range(90):
+        t = k / 30
+        here = rest + [0.0, 0.03 * np.sin(2 * np.pi * t), 0.0]
+        places = [here, rest + [0.0, 0.2, 0.0]] if k != 40 else [rest + [0.0, -0.04, 0.0], rest + [0.0, 0.2, 0.0]]
+        sightings.add(t, places, [0.08, 0.07])
+    seen = sightings.of(rest, 0.05)
+    assert len(seen) == 60 - 1 and seen[0][0] >= 3.0 - 2.0 - 1e-9            # the window, less the hidden frame
+    assert all(abs(p[1] - rest[1] - 0.03 * np.sin(2 * np.pi * t)) < 1e-9 for t, p, _ in seen)
+    assert all(d == 0.08 for _, _, d in seen)
