@@ -327,10 +327,11 @@ def plot_viewer(path, links, moments, tool, world, title):
     return _save_3d(plt, fig, ax, path, title)
 
 
-def plot_sway_picks(path, picks, title):
+def plot_sway_picks(path, picks, title, span=60.0):
     """Swaying apples picked: one panel per pick of ``picks`` (``(label, t_apple (N,), y_apple (N,), t_tool (M,),
     y_tool (M,), t_closed or None)``, times in s from the grasp, y in mm across the approach): where the apple truly
-    was and where the grasp point went, the fingers' closing marked."""
+    was and where the grasp point went, the fingers' closing marked; ``span`` mm either side of where the apple hangs
+    (the grasp point comes in from beyond it)."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(picks), figsize=(4.2 * len(picks), 3.8), squeeze=False, sharey=True)
     for ax, (label, ta, ya, tt, yt, closed) in zip(axes.flat, picks):
@@ -339,9 +340,10 @@ def plot_sway_picks(path, picks, title):
         if closed is not None:
             ax.axvline(closed, color='k', lw=0.8, ls='--', label='the fingers take the apple')
         ax.set_title(label, fontsize='medium')
+        ax.set_ylim(-span, span)
         ax.set_xlabel('time from the grasp [s]')
         ax.grid(True, alpha=0.3)
-    axes.flat[0].set_ylabel('across the approach (y) [mm]')
+    axes.flat[0].set_ylabel('across the approach, from where it hangs (y) [mm]')
     fig.suptitle(title)
     legend_below(fig, axes.flat[0], ncol=3)
     fig.savefig(path, dpi=110)
