@@ -132,3 +132,12 @@ def test_the_platform_figure_draws_each_arms_apples_path_and_links(tmp_path):
     path = plot_platform(tmp_path / 'platform.png', tree, by_arm, [], tools,
                          [m.base[:3, 3] for m in platform.arms], drawn, 'two arms')
     assert path.stat().st_size > 10_000
+
+
+def test_the_wind_scenarios_plot_draws_each_pick_within_the_sways_band(tmp_path):
+    from picking_bringup.plots import plot_sway_picks
+    t = np.linspace(-1.2, 0.3, 16)
+    picks = [(f'apple {i}: {label}', t, 30 * np.sin(2 * np.pi * t), t, np.full_like(t, -400.0 + 10 * i), 0.0)
+             for i, label in enumerate(('1.0 mm off centre', 'closed beside it'))]
+    path = plot_sway_picks(tmp_path / 'wind.png', picks, 'swaying apples')
+    assert path.stat().st_size > 10_000
