@@ -323,8 +323,7 @@ class Harvest:
         skipped = tuple(sorted(skipped, key=lambda s: s.index))
         plan = replace(_joined(plans), extra=dict(apples=len(times), skipped=len(skipped), order_estimate=est,
                                                   given_order_estimate=given, ordering_ms=ordering_s * 1e3))
-        return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s,
-                           self.cycle.s.gripper_closed + HOLDING_MARGIN)
+        return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s, empty_below(self.cycle.s.gripper_closed))
 
 
 class HarvestGoal:
@@ -361,6 +360,17 @@ HOLDING_MARGIN = 0.0025
 GRIP_SETTLE = 0.1
 
 
+def empty_below(gripper_closed):
+    """m: an opening measured below this while the fingers carry an apple means they hold nothing."""
+    return gripper_closed + HOLDING_MARGIN
+
+
+def carrying(held, t):
+    """Whether ``t`` s into a plan the fingers carry an apple they took, settled on it: ``held`` is the carry's
+    (grasp end, release start), s into the plan (None: a plan without a gripper)."""
+    return held is not None and held[0] + GRIP_SETTLE <= t <= held[1]
+
+
 class HarvestRun:
     """A harvest plan sent to start at ``start`` (s, the controller's clock): which apples are in the
     box by a time, and the harvest's summary when it ends. ``until``: when a harvest that replaced it
@@ -380,9 +390,8 @@ class HarvestRun:
         carry then."""
         if self.plan.empty_below <= 0.0 or t >= self.until:
             return
-        rel = t - self.start
         for a in self.plan.apples:
-            if a.held is not None and a.held[0] + GRIP_SETTLE <= rel <= a.held[1]:
+            if carrying(a.held, t - self.start):
                 self.grip[a.index] = min(self.grip.get(a.index, np.inf), float(opening))
 
     def holding(self, apple):

@@ -25,7 +25,7 @@ from typing import Protocol
 import numpy as np
 
 from ..collision import STEP as COLLISION_STEP
-from ..harvest import GRIP_SETTLE, HOLDING_MARGIN, HarvestRun
+from ..harvest import HarvestRun, carrying, empty_below
 from ..kinematics.paths import check_joint_limits
 from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
 from ..sway import Sightings, SwayFit
@@ -81,7 +81,7 @@ class GoalRunner:
         self.harvests = {}               # goal key -> HarvestRun of the harvests sent and not ended, oldest first
         self._places = {}                # goal key -> {apple index: (x, y, z)} of a harvest under way
         self.retargets = {'spliced': 0, 'replaced': 0}
-        #: Judge each harvested apple by the measured gripper (else it is claimed by the plan's clock).
+        #: Judge each picked or harvested apple by the measured gripper (else it is claimed by the plan's clock).
         self.grasp_check = True
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
@@ -350,7 +350,7 @@ class GoalRunner:
             extra = flight.planned.plan.extra
             if flight.goal.kind != Kind.PICK or flight.start is None or 'release_start' not in extra:
                 continue
-            if extra['grasp_end'] + GRIP_SETTLE <= now - flight.start <= extra['release_start']:
+            if carrying((extra['grasp_end'], extra['release_start']), now - flight.start):
                 key = flight.goal.key
                 self._grips[key] = min(self._grips.get(key, math.inf), float(measured[1]))
 
@@ -598,7 +598,7 @@ class GoalRunner:
             ending = Ending(Outcome.ABORTED, f'{goal.target.back_off}: it backed off home without closing')
         grip = self._grips.get(goal.key)
         if ending.outcome == Outcome.SUCCEEDED and grip is not None and \
-                grip < self.port.goal_planner().pick.gripper_closed + HOLDING_MARGIN:
+                grip < empty_below(self.port.goal_planner().pick.gripper_closed):
             ending = Ending(Outcome.ABORTED, f'the apple was not in the fingers: they closed to {grip * 100:.1f} cm '
                                              'while they should have carried it (the arm went on home)')
         if ending.late:
