@@ -89,6 +89,9 @@ def test_minimum_duration_and_refusals():
         trajectory.time_optimal([0.0], [1.0], 2.0, 6.0, 60.0, vf=[5.0])     # a target beyond the limit
     with pytest.raises(ValueError):
         trajectory.time_optimal([0.0], [1.0], 2.0, 6.0, 60.0, min_duration=-1.0)
+    # No joints at all (empty arrays): refused; Ruckig itself would stop the process (a division by zero).
+    with pytest.raises(ValueError, match='no joints'):
+        trajectory.time_optimal(np.array([]), np.array([]), 2.0, 6.0, 60.0)
     # No move with a vanishing minimum duration (Ruckig answers 1e-300 s, one break): held at the target.
     still = trajectory.time_optimal(0.0, 0.0, 1.0, 1.0, 1.0, 0.0, min_duration=1e-300)
     assert still.duration > 0 and still.state_at(0.0)[0] == pytest.approx([0.0])

@@ -167,6 +167,8 @@ def _calculate(ruckig, inp, traj):
     """
     from ruckig import RuckigError
 
+    if not len(inp.current_position):             # (Ruckig divides by the joints' count: a crash, not an error)
+        raise ValueError('no joints to move: the positions are empty')
     try:
         return ruckig.calculate(inp, traj)
     except RuckigError as first:
