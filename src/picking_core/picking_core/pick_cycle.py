@@ -163,6 +163,12 @@ class PickSettings:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f'{name} must be a finite number > 0, got {value}')
+        # (A line is screened point by point along its length: one longer than the arm reaches across is refused
+        # here, not after screening it.)
+        across = 2.0 * float(arm.reach[1]) + 1.0
+        for name in ('approach_distance', 'lift_height', 'box_drop_height'):
+            if getattr(self, name) > across:
+                raise ValueError(f'{name} {getattr(self, name)} m is longer than the arm reaches across ({across:.2f} m)')
         for name, n in (('box_position', 3), ('place_orientation_rpy', 3)):
             value = np.asarray(getattr(self, name), float)
             if value.shape != (n,) or not np.all(np.isfinite(value)):

@@ -225,7 +225,8 @@ def test_via_lspb_lines_run_at_the_speed_limit_where_it_binds(arm):
 
 @pytest.mark.parametrize('bad', [dict(home_positions=(0.0,) * 5), dict(approach_distance=0.0),
                                  dict(lift_method='jump'), dict(gripper_closed=0.2),
-                                 dict(box_position=(0.0, float('nan'), 0.3))])
+                                 dict(box_position=(0.0, float('nan'), 0.3)), dict(approach_distance=3109.0),
+                                 dict(box_drop_height=1e9)])
 def test_bad_pick_settings_are_refused(arm, bad):
     with pytest.raises(ValueError):
         PickSettings(**bad).validate(arm)
