@@ -12,7 +12,7 @@ import numpy as np
 
 from picking_common.middleware import use_fast_discovery
 
-from .demo_report import _table, log
+from .demo_report import _table, log, stop_stack
 from .stack import Stack
 
 FINAL = ('succeeded', 'aborted', 'refused', 'superseded', 'canceled')
@@ -54,9 +54,7 @@ def run_orchard_scenario(config, out, demo):
     except RuntimeError as exc:
         log(f'FAILED: {exc}')
     finally:
-        codes = arm.stack.stop()
-        for name, code in codes.items():
-            log(f'stopped {name}: exit code {code}')
+        codes = stop_stack(arm.stack)
     arm.close()
     rclpy.try_shutdown()
     return orchard_report(arm.rec, arm.ns, runs, codes, orchard, n, seed, out, demo)

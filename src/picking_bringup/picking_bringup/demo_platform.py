@@ -12,7 +12,7 @@ import numpy as np
 from picking_common.middleware import use_fast_discovery
 from picking_description import platform_path
 
-from .demo_report import _table, log, run_tool
+from .demo_report import _table, log, run_tool, stop_stack
 from .shipped import shipped_harvest
 from .stack import BIN, PlatformStack
 
@@ -60,9 +60,7 @@ def run_platform_scenario(config, out, demo):
     except RuntimeError as exc:
         log(f'FAILED: {exc}')
     finally:
-        codes = stack.stop()
-        for name, code in codes.items():
-            log(f'stopped {name}: exit code {code}')
+        codes = stop_stack(stack)
     tree = platform.tree(n, seed=seed)
     statuses = [m for _, m in rec.messages('/harvester_status')]
     final = next((m for m in reversed(statuses) if _values(m).get('state') in ('succeeded', 'aborted')), None)

@@ -33,6 +33,14 @@ def log(msg):
     print(f'[demo {time.strftime("%H:%M:%S")}] {msg}', flush=True)
 
 
+def stop_stack(stack):
+    """Stop a scenario's ``stack`` by its processes' ids, each exit code logged; returns them by node."""
+    codes = stack.stop()
+    for name, code in codes.items():
+        log(f'stopped {name}: exit code {code}')
+    return codes
+
+
 def run_tool(argv, timeout):
     """Run a command-line tool, each line it prints logged as it comes (a long harvest shows its progress);
     a CompletedProcess with what it printed. The tool is killed after ``timeout`` s."""
