@@ -13,8 +13,9 @@ import numpy as np
 import yaml
 
 from picking_common.middleware import use_fast_discovery
+from picking_common.status import status_values
 
-from .demo_report import _table, log
+from .demo_report import _table, log, stop_stack
 from .stack import Stack
 
 #: m: the apples, where they hang at rest (20 cm apart, in front of the arm, where the camera sees the whole of
@@ -89,9 +90,7 @@ def run_wind_scenario(config, out, demo):
     except RuntimeError as exc:
         log(f'FAILED: {exc}')
     finally:
-        codes = stack.stop()
-        for name, code in codes.items():
-            log(f'stopped {name}: exit code {code}')
+        codes = stop_stack(stack)
     spinner.stop(2.0)
     node.destroy_node()
     rclpy.try_shutdown()
@@ -113,17 +112,13 @@ def _wait(stack, pred, timeout, what):
         time.sleep(0.05)
 
 
-def _values(msg):
-    return {kv.key: kv.value for kv in msg.values}
-
-
 def _final(rec, ns, key):
-    return next((v for v in (_values(m) for _, m in rec.messages(f'{ns}/planner_status'))
+    return next((v for v in (status_values(m) for _, m in rec.messages(f'{ns}/planner_status'))
                  if v.get('goal') == key and v.get('state') in FINAL), None)
 
 
 def _event(rec, ns, apple, kind):
-    return next((v for v in (_values(m) for _, m in rec.messages(f'{ns}/fruit_events'))
+    return next((v for v in (status_values(m) for _, m in rec.messages(f'{ns}/fruit_events'))
                  if v.get('apple') == str(apple) and v.get('event') == kind), None)
 
 
@@ -165,7 +160,6 @@ def wind_report(rec, ns, picks, codes, out, demo):
         if panels else []
     path, count = rec.write_mcap(out / 'wind.mcap')
     files.append(path)
-    checks['every apple in the box by the simulator\'s count'] = all(landed for *_, landed in picks)
     checks['each pick\'s result agrees with the simulator (succeeded: its apple is in the box)'] = all(
         (end.get('state') == 'succeeded') == bool(landed) for _, _, end, _, landed in picks)
     checks['every pick followed its apple from the camera'] = all(
@@ -180,6 +174,9 @@ def wind_report(rec, ns, picks, codes, out, demo):
              'frames come. The simulator judges the measured arm.', '',
              _table(['apple', 'pick', 're-targets from the camera', 'the simulator', 'centre off the grasp point '
                      '[mm]'], rows), '',
+             # (A measurement, not a check: a miss is reported, and the pick says so, as the simulator does.)
+             f'{sum(bool(landed) for *_, landed in picks)} of {len(picks)} apples in the box by the simulator\'s '
+             'count.', '',
              '`wind.png`: for each pick, across the approach (y, from where the apple hangs at rest), the apple\'s '
              'true place (the simulator\'s `fruit_truth`, 10 Hz) and the grasp point\'s (from `joint_states`) in '
              'the last second before the fingers closed. '
