@@ -210,12 +210,14 @@ class SwayFit:
         beta, A, r = (x[0] for x in _weighted_fit(X[None], z, w))
         coeffs, cov = np.zeros((3, 5)), np.zeros((3, 5, 5))
         coeffs[:, :p] = beta
+        # The residuals' degrees of freedom: the frequency, searched for, was fitted to them too.
+        dof = max(n - p - (1 if f > 0 else 0), 1)
         # Scaled by how much worse than the noise the model fits (a gust, a sway off the model): at least 1.
-        scale = np.maximum(1.0, (w * r * r).sum(axis=1) / max(n - p, 1))
+        scale = np.maximum(1.0, (w * r * r).sum(axis=1) / dof)
         cov[:, :p, :p] = np.linalg.inv(A) * scale[:, None, None]
         # How far the apple strays from the model beyond the noise: over the window, or lately (a gust begun).
         recent = t >= t[-1] - self.s.recent
-        stray = np.maximum((r * r).mean(axis=1), (r[:, recent] ** 2).mean(axis=1)) - v.mean(axis=0)
+        stray = np.maximum((r * r).sum(axis=1), (r[:, recent] ** 2).mean(axis=1) * n) / dof - v.mean(axis=0)
         rms = np.sqrt(np.maximum(0.0, stray)) if n > p else np.zeros(3)
         return Fit(coeffs, cov, float(f), self.t, rms, float(t[-1] - t[0]) if n else 0.0)
 
