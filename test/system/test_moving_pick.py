@@ -90,7 +90,8 @@ def test_a_pick_never_sure_where_its_apple_is_waits_at_the_stand_off_then_backs_
 
         def waited(said, keys):
             """The camera sees the apple until the pick has waited at the stand-off almost its hold_time."""
-            if not since and any(v.get('state') == 'holding' for k in keys[:3] for v in said(k)):
+            if not since and any(status_values(m).get('state') == 'holding'
+                                 for _, m in client.planner_status[mark['planner']:]):
                 since.append(time.monotonic())
             return bool(since) and time.monotonic() - since[0] > HOLD - 0.5
         said, keys = stream(client, mark, lambda t: swaying(0.0) + [0.0, rng.choice([-0.025, 0.025]), 0.0], waited)

@@ -493,6 +493,63 @@ def test_a_pick_never_sure_of_its_swaying_apple_waits_at_the_stand_off_then_back
     assert 'backed off home without closing' in port.statuses[-1]['text']
 
 
+def test_a_pick_that_went_on_and_came_back_to_the_stand_off_waits_only_what_was_left_of_its_hold(port):
+    """Places first 35 mm to either side of the sway at random (the pick waits at the stand-off), then on the sway
+    (an aim is sure: it goes on), then at random again before its straight approach (back to the stand-off): the
+    hold_time counts from its first wait, so it backs off home then, not a whole hold_time after it came back."""
+    rng = np.random.default_rng(3)
+    runner = GoalRunner(port)
+    runner.take(_pick_at('p', port.t))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    plans = []
+    for k in range(150):
+        port.t += 1 / 30
+        port.t_wall += 1 / 30
+        T = _pick_at('x', port.t).target.pose.copy()
+        if k < 36 or k >= 75:
+            T[1, 3] += rng.choice([-0.035, 0.035])
+        runner.retarget(T, port.t_wall, f'{port.t:.9f}')
+        if port.sent[-1][0] is not flight:
+            flight = accept(runner, port)
+        runner.on_feedback(flight, port.t, port.t - flight.start if flight.start else 0.0, 0.0)
+        runner.tick()
+        extra = flight.planned.plan.extra
+        plans.append((port.t_wall, 'back off' if flight.goal.target.back_off else 'holds' if 'holds' in extra else
+                      'closes' if 'closes_in' in extra else 'aims'))
+    changes = [plans[0]] + [b for a, b in zip(plans, plans[1:]) if a[1] != b[1]]
+    # (An early plan whose straight approach is still far off may close before the first wait: it is not judged.)
+    assert [c[1] for c in changes][-4:] == ['holds', 'closes', 'holds', 'back off'], changes
+    first, back = next(t for t, kind in changes if kind == 'holds'), changes[-2][0]
+    hold = port.planner.pick.hold_time
+    assert first + hold <= changes[-1][0] <= first + hold + 0.15 < back + hold
+    said = [s['text'] for s in port.statuses if s.get('goal') == 'p' and s['state'] == 'holding']
+    assert len(said) == 2 and f'up to {hold:g} s' in said[0] and f'up to {hold:g} s' not in said[1], said
+
+
+@pytest.mark.parametrize('way', ['topic', 'retarget'])
+def test_places_of_a_picks_apple_passed_over_in_a_burst_still_tell_how_it_sways(port, way):
+    """A second of the apple's places came while the planner was busy (on pick_target, or on retarget): only the
+    newest is planned, but each older one is a place of the apple all the same, so the newest's plan is already
+    aimed at the sway. Another goal passed over is superseded as before."""
+    runner = GoalRunner(port)
+    runner.take(_pick_at('p', port.t))
+    accept(runner, port)
+    for k in range(1, 31):
+        port.t += 1 / 30
+        port.t_wall += 1 / 30
+        if way == 'topic':
+            runner.passed_over(_pick_at(f'q{k}', port.t, came=port.t_wall))
+        else:
+            runner.replaced(_pick_at('x', port.t).target.pose, f'{port.t:.9f}')
+    assert all('a place of it taken' in s['text'] for s in port.statuses if s.get('goal', '').startswith('q'))
+    port.t += 1 / 30
+    runner.take(_pick_at('q31', port.t, came=port.t_wall))
+    assert 'closes_in' in accept(runner, port).planned.plan.extra
+    runner.passed_over(pose_goal('g', [0.6, 0.1, 0.4]))
+    assert port.statuses[-1]['state'] == 'superseded' and 'a newer goal came' in port.statuses[-1]['text']
+
+
 def test_a_camera_out_for_half_a_second_leaves_the_pick_aimed(port):
     """No place for 0.5 s mid-approach, once the pick is aimed at the sway: it runs on as aimed and closes where the
     apple will be; the places after the gap find its straight approach begun (the aim holds)."""

@@ -69,8 +69,12 @@ class GoalInputs:
         for old in older:
             # (The same goal sent again while the planner was busy is that goal, not an older one.)
             if stamp == ZERO_KEY or old != msg:
-                self.runner.end(Goal(kind, goal_id(old.header), None, stamp=stamp_key(old.header.stamp)),
-                                Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
+                passed = Goal(kind, goal_id(old.header), None, stamp=stamp_key(old.header.stamp))
+                try:
+                    passed.target = self.target(kind, old)
+                except ValueError:
+                    pass                       # superseded all the same; only a place of a pick's apple is used
+                self.runner.passed_over(passed)
         goal = Goal(kind, goal_id(msg.header), None, self.runner.port.wall(),
                     stamp=stamp)
         try:
@@ -88,7 +92,7 @@ class GoalInputs:
             self._on_retarget(got[0])
 
     def _on_retarget(self, msg):
-        msg = newest_waiting(self.sub_retarget, msg, lambda _: self.runner.count_replaced())
+        msg = newest_waiting(self.sub_retarget, msg, self._replaced)
         try:
             pose = self.in_base(msg.header) @ msg_pose(msg.pose)
         except ValueError as exc:
@@ -97,6 +101,14 @@ class GoalInputs:
         why = self.runner.retarget(pose, self.runner.port.wall(), stamp_key(msg.header.stamp))
         if why is not None:
             self.node.get_logger().warning(f'retarget not taken: {why}', throttle_duration_sec=1.0)
+
+    def _replaced(self, msg):
+        """A re-target a newer one replaced before it was taken: counted, and for a pick a place of its apple."""
+        try:
+            pose = self.in_base(msg.header) @ msg_pose(msg.pose)
+        except ValueError:
+            pose = None
+        self.runner.replaced(pose, stamp_key(msg.header.stamp))
 
     # -- actions -----------------------------------------------------------------------------------
     async def _execute(self, kind, handle):

@@ -133,6 +133,21 @@ class GoalRunner:
                 goal = goal.again(target=replace(goal.target, follow=follow))
         self._handle(goal)
 
+    def passed_over(self, goal):
+        """``goal`` came on its topic but a newer one came before it was taken: ended superseded. A pick's place of the
+        running pick's apple is one more place of it all the same (its motion is fitted from every place seen; only
+        the newest is planned)."""
+        running = self._retargetable()
+        if goal.kind == Kind.PICK and goal.target is not None and running is not None and \
+                running.kind == Kind.PICK and running.feedback is None and not running.target.back_off and \
+                self._near_apple(running, goal.target.pose[:3, 3], self._stamp_time(goal.stamp)):
+            _, why = self._place(running.key, goal.target.pose, self._stamp_time(goal.stamp))
+            taken = 'a place of it taken' if why is None else f'its place not taken: {why}'
+            self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key} ({taken}); a newer place '
+                                                      'came before it was planned'))
+            return
+        self.end(goal, Ending(Outcome.SUPERSEDED, 'a newer goal came before it was planned'))
+
     def _same_apple(self, goal):
         """A pick sent on the topic near the running topic pick's target moves that pick on (True: answered here)."""
         running = self._retargetable()
@@ -263,12 +278,16 @@ class GoalRunner:
         if what in ('spliced', 'replaced'):
             self.retargets[what] += 1
 
-    def count_replaced(self):
-        """A re-target that a newer one replaced before it was taken in (coalesced on its topic)."""
+    def replaced(self, pose, stamp=''):
+        """A re-target to ``pose`` (as :meth:`retarget` takes it) that a newer one replaced before it was taken in
+        (coalesced on its topic): counted; for a pick, one more place of its apple all the same."""
         goal = self._retargetable()
-        if goal is not None:
-            self._moved(goal.key, 'received')
-            self._moved(goal.key, 'replaced')
+        if goal is None:
+            return
+        self._moved(goal.key, 'received')
+        self._moved(goal.key, 'replaced')
+        if goal.kind == Kind.PICK and pose is not None and not goal.target.back_off:
+            self._place(goal.key, pose, self._stamp_time(stamp))
 
     def _retargetable(self):
         waiting = self.waiting.goal
@@ -399,7 +418,8 @@ class GoalRunner:
         took = time.perf_counter() - t0
         start = self._in_time(start, took)
         self.timing.planned(goal.kind.value, took)
-        replaces = self.lifecycle.flights.get(goal.key) if goal.rest is not None else None
+        previous = self.lifecycle.flights.get(goal.key)
+        replaces = previous if goal.rest is not None else None
         flight = Flight(goal, planned, start.time or None, names, self.port.wall())
         flight.extra = self._figures(goal, planned, start, took, planner)
         flight.serial, flight.replaces = next(self._serial), replaces
@@ -409,43 +429,45 @@ class GoalRunner:
         self.port.send(flight, points, start.time)
         if 'closes_in' in planned.plan.extra:
             self._closes[goal.key] = planned_at + planned.plan.extra['closes_in']
-            self._holding.pop(goal.key, None)
         if 'holds' in planned.plan.extra:
-            self._hold(flight, planned.plan.extra['holds'])
+            self._hold(flight, planned.plan.extra['holds'], previous)
         # (A stream of re-targets is said on planner_status: the log says each goal's first plan.)
         self.port.log('DEBUG' if goal.retargets else 'INFO',
                       f'{goal.kind.value} goal: {planned.plan.method}, {planned.plan.duration:.3f} s from '
                       f'{start.words()}, planned in {took * 1e3:.1f} ms')
 
-    def _hold(self, flight, margin):
+    def _hold(self, flight, margin, previous):
         """``flight`` takes its pick to the stand-off to wait for a closing it is sure of (``margin`` m, what the
-        aim left inside the capture region): the closing instant is aimed afresh, and the wait starts the first
-        time."""
+        aim left inside the capture region): the closing instant is aimed afresh. The wait counts from the pick's
+        first time there (a pick that went on and came back waits only what is left); said when it goes there
+        (``previous``, the flight it replaces, did not hold)."""
         key = flight.goal.key
         self._closes.pop(key, None)
-        if key not in self._holding:
-            self._holding[key] = self.port.wall()
-            limit = self.port.goal_planner().pick.hold_time
-            self._transition(flight, 'holding', f'the closing is not sure (the predicted centre {margin * 1e3:.1f} mm '
-                                                f'inside the fingers\' reach, one deviation off): it waits at the '
-                                                f'stand-off up to {limit:g} s', margin=margin)
+        if previous is not None and 'holds' in previous.planned.plan.extra:
+            return
+        since = self._holding.setdefault(key, self.port.wall())
+        left = max(0.0, self.port.goal_planner().pick.hold_time - (self.port.wall() - since))
+        self._transition(flight, 'holding', f'the closing is not sure (the predicted centre {margin * 1e3:.1f} mm '
+                                            f'inside the fingers\' reach, one deviation off): it waits at the '
+                                            f'stand-off up to {left:.3g} s', margin=margin)
 
     def _holds_over(self):
-        """Picks that waited at the stand-off for the pick cycle's ``hold_time`` without a sure closing back off
-        home; the goal ends aborted when they are there."""
+        """Picks that have waited at the stand-off the pick cycle's ``hold_time`` since they first went there, and
+        wait there still, without a sure closing, back off home; the goal ends aborted when they are there."""
         if not self._holding:
             return
         limit = self.port.goal_planner().pick.hold_time
         for key, since in list(self._holding.items()):
             if self.port.wall() - since < limit:
                 continue
-            del self._holding[key]
+            flight = self.lifecycle.flights.get(key)
             if key in self._paused:
                 goal = self._paused.pop(key)[0]
-            elif key in self.lifecycle.flights:
-                goal = self.lifecycle.flights[key].goal
+            elif flight is not None and 'holds' in flight.planned.plan.extra:
+                goal = flight.goal
             else:
-                continue
+                continue                      # on its way to a sure closing, or not running
+            del self._holding[key]
             why = f'no closing on the moving apple was sure in {limit:g} s at the stand-off'
             self._handle(goal.again(target=replace(goal.target, follow=None, back_off=why), attempt=0))
 
@@ -605,7 +627,7 @@ class GoalRunner:
             self._late(flight, ending)
         elif ending.outcome == Outcome.SUCCEEDED and goal.kind == Kind.POSE and goal.retargets:
             self._paused[goal.key] = (goal, ending, flight.duration, self.port.wall() + STREAM_PAUSE)
-        elif ending.outcome == Outcome.SUCCEEDED and goal.key in self._holding:
+        elif ending.outcome == Outcome.SUCCEEDED and 'holds' in flight.planned.plan.extra:
             # At rest at the stand-off: the pick waits there for a sure closing (or its hold ends).
             self._paused[goal.key] = (goal, Ending(Outcome.SUPERSEDED, 'a newer goal came while it waited at the '
                                                   'stand-off'), flight.duration, math.inf)
