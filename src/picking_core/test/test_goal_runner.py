@@ -579,7 +579,7 @@ def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_w
     assert len(port.sent) == sent and runner._moves['p']['refused'] == 3
     # The same on the topic: a place of the running apple stamped out of order is refused, not taken.
     late = _pick_at('late', port.t - 0.3)
-    late.target.poses[0][:3, 3] = runner._sway['p'].newest
+    late.target.poses[0][:3, 3] = runner._picks['p'].fit.newest
     runner.take(late)
     assert port.states('late') == ['refused'] and 'out of order' in port.statuses[-1]['text']
     ahead_goal = _pick_at('ahead', 0.0)
@@ -616,7 +616,7 @@ def test_a_pick_of_a_swaying_apple_the_camera_sees_is_aimed_from_its_first_plan_
     # (The fingers are timed to meet the width the camera sees, not a typical apple's.)
     assert 'closes_in' in first.planned.plan.extra and first.goal.target.follow.width == pytest.approx(0.08, abs=2e-3)
     # (Stamped 0, from the controller's reference: it starts when planned to, as its feedback then says.)
-    port.t = runner._closes['p'] - first.planned.plan.extra['closes_in']
+    port.t = runner._picks['p'].closes - first.planned.plan.extra['closes_in']
     runner.on_feedback(first, port.t, 0.0, 0.0)
     assert _closing_miss(port, first) < 0.005
     _camera(runner, port, 0.5, _swaying, rng)
@@ -650,7 +650,7 @@ def test_a_moving_picks_re_plan_that_came_too_late_is_aimed_again_and_the_pick_s
     T[:3, 3] = (0.70, 0.15, 0.65)
     runner.take(Goal(Kind.PICK, 'p', Target(Kind.PICK, (T,)), port.t_wall))
     first = accept(runner, port)
-    port.t = runner._closes['p'] - first.planned.plan.extra['closes_in']
+    port.t = runner._picks['p'].closes - first.planned.plan.extra['closes_in']
     runner.on_feedback(first, port.t, 0.0, 0.0)
     for _ in range(24):                                         # into the approach, re-targeted frame by frame
         _camera(runner, port, 1 / 30, _swaying, rng)

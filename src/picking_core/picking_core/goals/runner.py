@@ -19,7 +19,7 @@ import itertools
 import math
 import time
 import traceback
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -50,6 +50,30 @@ AHEAD = 0.1
 #: The camera's newest diameters of a pick's apple whose median its fingers are timed to meet.
 WIDTHS = 60
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
+
+
+@dataclass
+class PickState:
+    """What the goal flow knows of a running pick's apple: ``fit`` its motion from its stamped places; ``widths``
+    the diameters the camera saw it at (m); ``closes`` when the pick's last plan closes the fingers (ROS clock);
+    ``holding_since`` when it first went to the stand-off to wait (wall clock); ``grip`` the narrowest opening
+    measured while its plan carried the apple (m)."""
+
+    fit: SwayFit = field(default_factory=SwayFit)
+    widths: collections.deque = field(default_factory=lambda: collections.deque(maxlen=WIDTHS))
+    closes: float | None = None
+    holding_since: float | None = None
+    grip: float | None = None
+
+    @property
+    def width(self):
+        """m: the width its fingers are timed to meet: the camera's median, else a typical apple's."""
+        return float(np.median(self.widths)) if self.widths else APPLE_WIDTH
+
+    def sways(self):
+        """Whether its places show the apple swaying."""
+        fit = self.fit.fit()
+        return fit is not None and fit.frequency > 0.0
 
 
 class Port(Protocol):
@@ -85,12 +109,8 @@ class GoalRunner:
         self.grasp_check = True
         self._moves = {}                 # goal key -> its re-targets: received, spliced, replaced, refused
         self._paused = {}                # goal key -> (goal, ending, duration, until): re-targeted, at rest, open
-        self._sway = {}                  # pick goal key -> SwayFit of its target's stamped places
-        self._closes = {}                # pick goal key -> when its last plan closes the fingers (ROS clock)
-        self._holding = {}               # pick goal key -> when it first went to the stand-off to wait (wall clock)
+        self._picks = {}                 # pick goal key -> PickState of its apple
         self.sightings = Sightings()     # the camera's recent frames (:meth:`seen`)
-        self._widths = {}                # pick goal key -> the diameters the camera saw its apple at, m
-        self._grips = {}                 # pick goal key -> the narrowest opening measured while it carried its apple
         self._serial = itertools.count(1)
         self._superseded, self._superseded_said = 0, -math.inf
 
@@ -119,17 +139,18 @@ class GoalRunner:
             self.end(goal, Ending(Outcome.REFUSED, str(exc)))
             return
         if goal.kind == Kind.PICK:
-            fit = self._sway[goal.key] = SwayFit()
+            pick = self._picks[goal.key] = PickState()
+            fit = pick.fit
             for t, p, diameter in self.sightings.of(goal.target.pose[:3, 3], SAME_APPLE):
                 fit.update(t, p, np.eye(3) * STREAM_NOISE ** 2)
-                self._widths.setdefault(goal.key, collections.deque(maxlen=WIDTHS)).append(diameter)
+                pick.widths.append(diameter)
             # (Where the camera saw the apple, the sender's place of it is a rough one beside those.)
             noise = STREAM_NOISE if fit.newest is None else SAME_APPLE
             follow, why = self._place(goal.key, goal.target.pose, self._stamp_time(goal.stamp), noise)
             if why is not None:
                 self.end(goal, Ending(Outcome.REFUSED, why.replace('its place', 'the apple', 1)))
                 return
-            if self._sways(goal.key):
+            if pick.sways():
                 goal = goal.again(target=replace(goal.target, follow=follow))
         self._handle(goal)
 
@@ -165,7 +186,7 @@ class GoalRunner:
     def _near_apple(self, running, p, t):
         """Whether ``p`` seen at ``t`` (s, the port's clock) is the apple of pick ``running``: within SAME_APPLE of its
         latest place, or of where its sway puts it then (a stream that stalled finds it farther on)."""
-        fit = self._sway.get(running.key)
+        fit = self._picks[running.key].fit if running.key in self._picks else None
         places = [running.target.pose[:3, 3] if fit is None or fit.newest is None else fit.newest]
         predicted = fit.predict(t) if fit is not None else None
         if predicted is not None:
@@ -185,10 +206,10 @@ class GoalRunner:
         too few to tell how it moves), or why the place is refused (stamped ahead of the clock, older than the newest
         place, or far from both the newest place and where the apple's sway puts it then: another apple taken for
         it)."""
-        fit = self._sway.get(key)
-        if fit is None:
+        pick = self._picks.get(key)
+        if pick is None:
             return None, None
-        p = np.asarray(pose, float)[:3, 3]
+        fit, p = pick.fit, np.asarray(pose, float)[:3, 3]
         if t > self.port.now() + AHEAD:
             return None, f'its place is stamped {t - self.port.now():.3f} s ahead of the clock'
         motion = fit.fit()
@@ -203,9 +224,7 @@ class GoalRunner:
         if motion is None or (motion.frequency <= 0.0 and motion.span < fit.s.min_span):
             return None, None                 # too few places to tell how it moves: aimed at the latest
         # (The fingers are timed to meet the apple's width: the camera's, where it saw the apple.)
-        widths = self._widths.get(key)
-        width = float(np.median(widths)) if widths else APPLE_WIDTH
-        return Follow(fit.predict, width, self._closes.get(key), key in self._holding), None
+        return Follow(fit.predict, pick.width, pick.closes, pick.holding_since is not None), None
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
@@ -237,25 +256,21 @@ class GoalRunner:
         goal = self._retargetable()
         if goal is None or goal.kind != Kind.PICK or goal.target.back_off or not len(places):
             return
-        fit = self._sway.get(goal.key)
-        if fit is None:
+        pick = self._picks.get(goal.key)
+        if pick is None:
             return
+        fit = pick.fit
         near = fit.newest if fit.newest is not None else goal.target.pose[:3, 3]
         k = int(np.argmin(np.linalg.norm(np.asarray(places, float) - near, axis=1)))
         p = np.asarray(places, float)[k]
         if not self._near_apple(goal, p, t):
             return
-        self._widths.setdefault(goal.key, collections.deque(maxlen=WIDTHS)).append(float(diameters[k]))
+        pick.widths.append(float(diameters[k]))
         pose = goal.target.pose.copy()
         pose[:3, 3] = p
         follow, why = self._place(goal.key, pose, t)
-        if why is None and follow is not None and self._sways(goal.key):
+        if why is None and follow is not None and pick.sways():
             self._move(goal, pose, follow, self.port.wall(), stamp)
-
-    def _sways(self, key):
-        """Whether pick ``key``'s places show its apple swaying."""
-        fit = self._sway[key].fit()
-        return fit is not None and fit.frequency > 0.0
 
     def _move(self, goal, pose, follow, wall, stamp):
         """Re-target running ``goal`` to ``pose`` aimed by ``follow`` (a pick's): None, or why it was not taken."""
@@ -369,9 +384,9 @@ class GoalRunner:
             extra = flight.planned.plan.extra
             if flight.goal.kind != Kind.PICK or flight.start is None or 'release_start' not in extra:
                 continue
-            if carrying((extra['grasp_end'], extra['release_start']), now - flight.start):
-                key = flight.goal.key
-                self._grips[key] = min(self._grips.get(key, math.inf), float(measured[1]))
+            pick = self._picks.get(flight.goal.key)
+            if pick is not None and carrying((extra['grasp_end'], extra['release_start']), now - flight.start):
+                pick.grip = min(math.inf if pick.grip is None else pick.grip, float(measured[1]))
 
     def _serve_waiting(self):
         if self.waiting.goal is None:
@@ -403,7 +418,7 @@ class GoalRunner:
                 self._moved(goal.key, 'held')         # a moving apple's pick keeps the plan it runs
             else:
                 # No plan of its own runs to keep (its last came too late): aimed afresh, to close when it soonest can.
-                self._closes.pop(goal.key, None)
+                self._picks[goal.key].closes = None
                 self._handle(goal.again(target=replace(goal.target, follow=replace(goal.target.follow,
                                                                                    closes_at=None))))
             return
@@ -428,7 +443,7 @@ class GoalRunner:
             self._harvest_sent(goal, planned, flight)
         self.port.send(flight, points, start.time)
         if 'closes_in' in planned.plan.extra:
-            self._closes[goal.key] = planned_at + planned.plan.extra['closes_in']
+            self._picks[goal.key].closes = planned_at + planned.plan.extra['closes_in']
         if 'holds' in planned.plan.extra:
             self._hold(flight, planned.plan.extra['holds'], previous)
         # (A stream of re-targets is said on planner_status: the log says each goal's first plan.)
@@ -441,12 +456,13 @@ class GoalRunner:
         aim left inside the capture region): the closing instant is aimed afresh. The wait counts from the pick's
         first time there (a pick that went on and came back waits only what is left); said when it goes there
         (``previous``, the flight it replaces, did not hold)."""
-        key = flight.goal.key
-        self._closes.pop(key, None)
+        pick = self._picks[flight.goal.key]
+        pick.closes = None
         if previous is not None and 'holds' in previous.planned.plan.extra:
             return
-        since = self._holding.setdefault(key, self.port.wall())
-        left = max(0.0, self.port.goal_planner().pick.hold_time - (self.port.wall() - since))
+        if pick.holding_since is None:
+            pick.holding_since = self.port.wall()
+        left = max(0.0, self.port.goal_planner().pick.hold_time - (self.port.wall() - pick.holding_since))
         self._transition(flight, 'holding', f'the closing is not sure (the predicted centre {margin * 1e3:.1f} mm '
                                             f'inside the fingers\' reach, one deviation off): it waits at the '
                                             f'stand-off up to {left:.3g} s', margin=margin)
@@ -454,11 +470,9 @@ class GoalRunner:
     def _holds_over(self):
         """Picks that have waited at the stand-off the pick cycle's ``hold_time`` since they first went there, and
         wait there still, without a sure closing, back off home; the goal ends aborted when they are there."""
-        if not self._holding:
-            return
         limit = self.port.goal_planner().pick.hold_time
-        for key, since in list(self._holding.items()):
-            if self.port.wall() - since < limit:
+        for key, pick in list(self._picks.items()):
+            if pick.holding_since is None or self.port.wall() - pick.holding_since < limit:
                 continue
             flight = self.lifecycle.flights.get(key)
             if key in self._paused:
@@ -467,7 +481,7 @@ class GoalRunner:
                 goal = flight.goal
             else:
                 continue                      # on its way to a sure closing, or not running
-            del self._holding[key]
+            pick.holding_since = None
             why = f'no closing on the moving apple was sure in {limit:g} s at the stand-off'
             self._handle(goal.again(target=replace(goal.target, follow=None, back_off=why), attempt=0))
 
@@ -599,9 +613,10 @@ class GoalRunner:
     def _learnt_start(self, flight):
         if self.running is not None and self.running.key == flight.serial:
             self.running = replace(self.running, start=flight.start)
-        if 'closes_in' in flight.planned.plan.extra and flight.goal.key in self._closes:
+        pick = self._picks.get(flight.goal.key)
+        if 'closes_in' in flight.planned.plan.extra and pick is not None and pick.closes is not None:
             # (A plan the controller bridged to runs later than planned: its fingers close later too.)
-            self._closes[flight.goal.key] = flight.start + self.timing.delay + flight.planned.plan.extra['closes_in']
+            pick.closes = flight.start + self.timing.delay + flight.planned.plan.extra['closes_in']
         run = self.harvests.get(flight.goal.key)
         if run is not None and run.start is None:
             run.start = run.first = flight.start
@@ -618,7 +633,7 @@ class GoalRunner:
         goal = flight.goal
         if ending.outcome == Outcome.SUCCEEDED and goal.target.back_off:
             ending = Ending(Outcome.ABORTED, f'{goal.target.back_off}: it backed off home without closing')
-        grip = self._grips.get(goal.key)
+        grip = self._picks[goal.key].grip if goal.key in self._picks else None
         if ending.outcome == Outcome.SUCCEEDED and grip is not None and \
                 grip < empty_below(self.port.goal_planner().pick.gripper_closed):
             ending = Ending(Outcome.ABORTED, f'the apple was not in the fingers: they closed to {grip * 100:.1f} cm '
@@ -693,8 +708,7 @@ class GoalRunner:
         if 'summary' in values:
             text += f" ({values.pop('summary')})"
         values.update({f'retargets_{k}': n for k, n in self._moves.pop(goal.key, {}).items()})
-        for remembered in (self._sway, self._closes, self._holding, self._widths, self._grips):
-            remembered.pop(goal.key, None)
+        self._picks.pop(goal.key, None)
         self._answer(goal, level, text, state=outcome.word, controller_error_code=ending.code, **values)
         if outcome == Outcome.SUPERSEDED:
             self._superseded += 1
