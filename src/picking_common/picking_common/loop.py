@@ -104,12 +104,10 @@ class PeriodicLoop:
         self.origin = loop_origin(self.period, self.phase)
         self._thread.start()
 
-    def stop(self):
-        """Stop the loop and wait for its thread to end: the node's publishers it uses are destroyed next, and a
-        tick still publishing on one then would crash the process (a node's teardown bounds the whole wait)."""
+    def stop(self, timeout=1.0):
         self._stop.set()
         if self._thread.is_alive():
-            self._thread.join()
+            self._thread.join(timeout=timeout)
 
     def _log_stall(self, worst, count):
         more = f' (the longest of {count} stalls since the last report)' if count > 1 else ''

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import ctypes
 import faulthandler
 import gc
 import os
@@ -26,7 +25,7 @@ SWITCH_INTERVAL = 2e-5
 
 
 def run_node(make_node, args=None, help=None):
-    """Init, build the node, spin, and end the process with 0 without a traceback on SIGINT/SIGTERM.
+    """Init, build the node, spin, and exit 0 without a traceback on SIGINT/SIGTERM.
 
     ``-h`` / ``--help`` before the ROS arguments prints ``help`` and exits 0; any other argument
     there is refused (exit 2): a node takes only ROS arguments.
@@ -86,17 +85,7 @@ def run_node(make_node, args=None, help=None):
         _teardown(node, executor)
         for sig, handler in old.items():
             signal.signal(sig, handler)
-    _exit_now(0)
-
-
-def _exit_now(code):
-    """End the process with ``code`` once its node and rclpy are closed. The interpreter's own finalization would run
-    the middleware's destructors after the STOP_LIMIT watchdog is gone, where they can hang or crash the process; all
-    that is left to do is flush the output (Python's and C's)."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    ctypes.CDLL(None).fflush(None)
-    os._exit(code)
+    return 0
 
 
 def _stacks_on_request():
@@ -108,9 +97,9 @@ def _stacks_on_request():
 
 
 def _teardown(node, executor):
-    """Close the node (its own ``close`` first: loops, threads), the executor, then rclpy and its context. A node
-    that does not finish within STOP_LIMIT writes every thread's stack and exits 1 (from C: even a thread stuck
-    holding the GIL in the middleware cannot hold the process up)."""
+    """Close the node (its own ``close`` first: loops, threads), the executor, then rclpy. A node that does not
+    finish within STOP_LIMIT writes every thread's stack and exits 1 (from C: even a thread stuck holding the GIL
+    in the middleware cannot hold the process up)."""
     faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
     if node is not None:
         close = getattr(node, 'close', None)
@@ -122,9 +111,6 @@ def _teardown(node, executor):
         destroy_latest(node)
         node.destroy_node()
     rclpy.try_shutdown()
-    # (The DDS participant goes with the context: destroyed here, within the bound, the other processes see the
-    # node leave at once.)
-    rclpy.get_default_context().destroy()
 
 
 def _own_arguments(argv, prog, help):
