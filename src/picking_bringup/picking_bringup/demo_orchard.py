@@ -11,6 +11,7 @@ import time
 import numpy as np
 
 from picking_common.middleware import use_fast_discovery
+from picking_common.status import status_values
 
 from .demo_report import _table, log, stop_stack
 from .stack import Stack
@@ -114,7 +115,7 @@ class _OrchardArm:
             time.sleep(0.05)
 
     def statuses(self, key):
-        return [m for _, m in self.rec.messages(f'{self.ns}/planner_status') if _values(m).get('goal') == key]
+        return [m for _, m in self.rec.messages(f'{self.ns}/planner_status') if status_values(m).get('goal') == key]
 
     def harvest(self, label, apples):
         """One harvest of ``apples`` (4x4 grasp poses) from where the arm rests, each status logged as it comes:
@@ -131,7 +132,7 @@ class _OrchardArm:
         t0, told = time.monotonic(), [0]
 
         def ended():
-            return next((m for m in self.statuses(key) if _values(m).get('state') in FINAL), None)
+            return next((m for m in self.statuses(key) if status_values(m).get('state') in FINAL), None)
 
         def progress():
             said = self.statuses(key)
@@ -141,9 +142,9 @@ class _OrchardArm:
         self.wait(lambda: ended() is not None, 120.0 + 15.0 * len(apples), f'the {label} harvest to end',
                   progress=progress)
         time.sleep(0.5)                                   # the witness's last look
-        final = _values(ended())
-        contacts = [_values(m) for _, m in self.rec.messages(f'{self.ns}/sim_contacts')[contacts_before:]
-                    if _values(m).get('state') == 'started']
+        final = status_values(ended())
+        contacts = [status_values(m) for _, m in self.rec.messages(f'{self.ns}/sim_contacts')[contacts_before:]
+                    if status_values(m).get('state') == 'started']
         log(f'  {label}: {final.get("state")}, {final.get("picked", "0")} of {len(apples)} picked, '
             f'{len(contacts)} contacts reported by the simulator ({time.monotonic() - t0:.0f} s)')
         return key, final, self.statuses(key), contacts
@@ -211,15 +212,11 @@ def orchard_report(rec, ns, runs, codes, orchard, n, seed, out, demo):
     return lines, files, checks
 
 
-def _values(msg):
-    return {kv.key: kv.value for kv in msg.values}
-
-
 def _apples(statuses, word, reasons=False):
     """The apple indices a harvest's statuses report as ``word`` (picked, skipped), in order."""
     out = []
     for m in statuses:
-        v = _values(m)
+        v = status_values(m)
         if v.get('apple_state') == word and 'apple' in v:
             out.append((int(v['apple']), m.message.split(f'{word}: ', 1)[-1]) if reasons else int(v['apple']))
     return out

@@ -10,6 +10,7 @@ from functools import partial
 import numpy as np
 
 from picking_common.middleware import use_fast_discovery
+from picking_common.status import status_values
 from picking_description import platform_path
 
 from .demo_report import _table, log, run_tool, stop_stack
@@ -63,7 +64,7 @@ def run_platform_scenario(config, out, demo):
         codes = stop_stack(stack)
     tree = platform.tree(n, seed=seed)
     statuses = [m for _, m in rec.messages('/harvester_status')]
-    final = next((m for m in reversed(statuses) if _values(m).get('state') in ('succeeded', 'aborted')), None)
+    final = next((m for m in reversed(statuses) if status_values(m).get('state') in ('succeeded', 'aborted')), None)
     by_arm = {ns: [] for ns in names}
     for m in statuses:
         for ns in names:
@@ -95,11 +96,11 @@ def platform_report(rec, platform, names, tree, by_arm, left, final, statuses, c
     coordinator = Coordinator.from_platform(platform, partial(shipped_harvest, config))
     files, checks = [], {}
     ok_run = done is not None and done.returncode == 0 and final is not None
-    checks['the two-arm harvest succeeded'] = ok_run and _values(final).get('state') == 'succeeded'
+    checks['the two-arm harvest succeeded'] = ok_run and status_values(final).get('state') == 'succeeded'
     checks['every node of the platform exited with 0'] = set(codes.values()) == {0}
     if final is None:
         return ['', '## Scenario 4: one tree, two arms', '', 'The harvest did not end: see the logs.'], files, checks
-    v = _values(final)
+    v = status_values(final)
     measured = float(v.get('closest_measured', 'nan'))
     checks['the arms never came within 5 cm (measured)'] = measured >= coordinator.clearance
     checks['every apple the coordinator counts is drawn for its arm'] = (
@@ -140,10 +141,6 @@ def platform_report(rec, platform, names, tree, by_arm, left, final, statuses, c
              'the coordinator\'s statuses and the tree as visualization_msgs/MarkerArray on `/tree_markers`.']
     lines += ['', *[f'- {k}: {"yes" if ok else "NO"}' for k, ok in checks.items()]]
     return lines, files, checks
-
-
-def _values(msg):
-    return {kv.key: kv.value for kv in msg.values}
 
 
 def _grasp_drawings(coordinator, tree, by_arm):
