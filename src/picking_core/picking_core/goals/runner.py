@@ -158,10 +158,8 @@ class GoalRunner:
         """``goal`` came on its topic but a newer one came before it was taken: ended superseded. A pick's place of the
         running pick's apple is one more place of it all the same (its motion is fitted from every place seen; only
         the newest is planned)."""
-        running = self._retargetable()
-        if goal.kind == Kind.PICK and goal.target is not None and running is not None and \
-                running.kind == Kind.PICK and running.feedback is None and not running.target.back_off and \
-                self._near_apple(running, goal.target.pose[:3, 3], self._stamp_time(goal.stamp)):
+        running = self._topic_pick_of(goal)
+        if running is not None and not running.target.back_off:
             _, why = self._place(running.key, goal.target.pose, self._stamp_time(goal.stamp))
             taken = 'a place of it taken' if why is None else f'its place not taken: {why}'
             self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key} ({taken}); a newer place '
@@ -171,9 +169,8 @@ class GoalRunner:
 
     def _same_apple(self, goal):
         """A pick sent on the topic near the running topic pick's target moves that pick on (True: answered here)."""
-        running = self._retargetable()
-        if goal.feedback is not None or running is None or running.kind != Kind.PICK or running.feedback is not None \
-                or not self._near_apple(running, goal.target.pose[:3, 3], self._stamp_time(goal.stamp)):
+        running = self._topic_pick_of(goal) if goal.feedback is None else None
+        if running is None:
             return False
         why = self.retarget(goal.target.pose, goal.came, goal.stamp)
         if why is not None and why.startswith('its place'):
@@ -183,11 +180,23 @@ class GoalRunner:
             self.end(goal, Ending(Outcome.SUPERSEDED, f'the apple of pick goal {running.key}: {taken}'))
         return True
 
-    def _near_apple(self, running, p, t):
-        """Whether ``p`` seen at ``t`` (s, the port's clock) is the apple of pick ``running``: within SAME_APPLE of its
-        latest place, or of where its sway puts it then (a stream that stalled finds it farther on)."""
-        fit = self._picks[running.key].fit if running.key in self._picks else None
-        places = [running.target.pose[:3, 3] if fit is None or fit.newest is None else fit.newest]
+    def _topic_pick_of(self, goal):
+        """The running pick (sent on the topic) whose apple pick ``goal`` places, or None."""
+        running = self._retargetable()
+        if goal.kind != Kind.PICK or goal.target is None or running is None or running.kind != Kind.PICK \
+                or running.feedback is not None:
+            return None
+        near = self._near_apple(self._picks.get(running.key), running.target.pose[:3, 3], goal.target.pose[:3, 3],
+                                self._stamp_time(goal.stamp))
+        return running if near else None
+
+    @staticmethod
+    def _near_apple(pick, target, p, t):
+        """Whether ``p`` seen at ``t`` (s, the port's clock) is ``pick``'s apple: within SAME_APPLE of its newest place
+        (``target`` before it has one), or of where its sway puts it then (a stream that stalled finds it farther
+        on)."""
+        fit = pick.fit if pick is not None else None
+        places = [target if fit is None or fit.newest is None else fit.newest]
         predicted = fit.predict(t) if fit is not None else None
         if predicted is not None:
             places.append(predicted[0])
@@ -213,11 +222,10 @@ class GoalRunner:
         if t > self.port.now() + AHEAD:
             return None, f'its place is stamped {t - self.port.now():.3f} s ahead of the clock'
         motion = fit.fit()
-        if motion is not None and motion.frequency > 0.0 and t >= fit.t:
+        # (Near the newest place it is the same apple all the same: a sway fitted wrongly must not lock it out.)
+        if motion is not None and motion.frequency > 0.0 and t >= fit.t and not self._near_apple(pick, fit.newest, p, t):
             off = float(np.linalg.norm(p - fit.predict(t)[0]))
-            # (Near the newest place it is the same apple all the same: a sway fitted wrongly must not lock it out.)
-            if off > SAME_APPLE and np.linalg.norm(p - fit.newest) > SAME_APPLE:
-                return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
+            return None, f'its place jumps {off * 100:.1f} cm from where the apple sways then (another apple?)'
         if not fit.update(t, p, np.eye(3) * noise ** 2):
             return None, 'its place is stamped before the newest one taken (out of order)'
         motion = fit.fit()
@@ -263,7 +271,7 @@ class GoalRunner:
         near = fit.newest if fit.newest is not None else goal.target.pose[:3, 3]
         k = int(np.argmin(np.linalg.norm(np.asarray(places, float) - near, axis=1)))
         p = np.asarray(places, float)[k]
-        if not self._near_apple(goal, p, t):
+        if not self._near_apple(pick, goal.target.pose[:3, 3], p, t):
             return
         pick.widths.append(float(diameters[k]))
         pose = goal.target.pose.copy()
