@@ -176,18 +176,36 @@ def clear_cycle(cycle, plan_one, T_apple, neighbours=None):
 
 
 def clear_plan(cycle, make, allowed, neighbours=None):
-    """``(plan, contact)``: ``make(detours, slow)``'s plan and its first contact (None: clear). A joint move
-    that hits something (one of the cycle's DETOURS) goes around it through the waypoints of a
-    collision-free joint path (RRT-Connect, shortcut), and the plan is made again with them. With
+    """``(plan, contact)``: ``make(detours)``'s plan (``make(detours, slow)`` when moves are slowed) and its first contact (None: clear). A joint move
+    that hits something (one of the cycle's DETOURS) goes around it (:func:`_detoured`). With
     ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`, the apples not being picked), a
     clear plan's joint moves that pass an apple too fast go around the apples too (:func:`_past_apples`)."""
-    checker = cycle.checker
-    plan = make()
-    if checker is None:
-        return plan, None
+    if cycle.checker is None:
+        return make(), None
+    plan, detours, contact = _detoured(cycle, make, allowed)
+    if contact is None and neighbours is not None and len(neighbours):
+        plan, detours = _past_apples(cycle, make, plan, detours, allowed, neighbours)
+    if contact is None and detours:
+        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoint{"s" * (len(w) != 1)}'
+                                          for label, w in detours.items())
+    return plan, contact
+
+
+def _detoured(cycle, make, allowed, detours=None, slow=None):
+    """``(plan, detours, contact)``: ``make(detours, slow)``'s plan, each joint move of it that hits something (one
+    of the cycle's DETOURS) taken around it through the waypoints of a collision-free joint path (RRT-Connect,
+    shortcut; twice as many of them while the timed move still cuts a corner into it, up to REFINE times; a move
+    already given waypoints gets new ones: slowed, its timed path between them differs), at most once a move; the
+    first contact left (None: clear)."""
+    checker, detours = cycle.checker, dict(detours or {})
+
+    def made():
+        return make(detours) if slow is None else make(detours, slow)
+    plan = made()
     contact = check(checker, plan, allowed)
-    detours = {}
-    while contact is not None and contact.part in DETOURS and contact.part not in detours:
+    redone = set()
+    while contact is not None and contact.part in DETOURS and contact.part not in redone:
+        redone.add(contact.part)
         seg = next(x for x in plan.segments if x.label == contact.part)
         ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :cycle.arm.dof]
         try:
@@ -197,23 +215,23 @@ def clear_plan(cycle, make, allowed, neighbours=None):
             break
         if len(path) <= 2:                           # the straight way is clear: the timed move is not
             break
-        detours[contact.part] = list(path[1:-1])
-        plan = make(detours)
-        contact = check(checker, plan, allowed)
-    if contact is None and neighbours is not None and len(neighbours):
-        plan, detours = _past_apples(cycle, make, plan, detours, allowed, neighbours)
-    if contact is None and detours:
-        plan.extra['detours'] = ', '.join(f'{label} through {len(w)} waypoint{"s" * (len(w) != 1)}'
-                                          for label, w in detours.items())
-    return plan, contact
+        part = contact.part
+        for _ in range(REFINE + 1):
+            detours[part] = list(path[1:-1])
+            plan = made()
+            contact = check(checker, plan, allowed)
+            if contact is None or contact.part != part:
+                break
+            path = doubled(path)                     # the timed move cut a corner of the path: held closer to it
+    return plan, detours, contact
 
 
 def _past_apples(cycle, make, plan, detours, allowed, neighbours):
     """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
     the ``neighbours`` faster than their speed taken around the apples (:func:`_around_apples`), or, where no
-    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed; the plan made
-    that way kept only when clear of obstacles). A move that neither helps keeps its path (the apple it passes
-    may bruise)."""
+    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed; a slowed move that
+    hits an obstacle is taken around it again, :func:`_detoured`; the plan made that way kept only when clear). A
+    move that neither helps keeps its path (the apple it passes may bruise)."""
     checker = cycle.checker
     tried, slow = set(), {}
     while True:
@@ -231,14 +249,14 @@ def _past_apples(cycle, make, plan, detours, allowed, neighbours):
         while fraction > MIN_SLOW:
             fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
             try:
-                again = make(detours, {**slow, seg.label: fraction})
+                again, again_detours, contact = _detoured(cycle, make, allowed, detours, {**slow, seg.label: fraction})
             except Unreachable:
                 break
-            if check(checker, again, allowed) is not None:
+            if contact is not None:
                 break
             still = _fast_touch(checker, again, neighbours, [seg.label])[0]
             if still is None:
-                plan, slow = again, {**slow, seg.label: fraction}
+                plan, slow, detours = again, {**slow, seg.label: fraction}, again_detours
                 break
             touch = still
 

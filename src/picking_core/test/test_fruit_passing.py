@@ -110,3 +110,18 @@ def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_th
     assert slowed.duration > direct.duration
     allowed = Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
     assert check(cycle.checker, slowed, allowed) is None
+
+
+def test_a_slowed_move_that_would_cut_into_a_twig_is_taken_around_it_again(monkeypatch):
+    # (Seed 2's apple 2: its transfer goes around twig 1 through waypoints and passes apple 6 fast; slowed, the
+    # timed move between the same waypoints cuts into the twig.)
+    cycle, orchard = _cycle(seed=2)
+    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 2
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    plan = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    assert _fast_in_joint_moves(cycle, plan, neighbours) is None
+    assert 'P4 above the box' in plan.extra['slowed'] and 'P4 above the box' in plan.extra['detours']
+    assert check(cycle.checker, plan, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
