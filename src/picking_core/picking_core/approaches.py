@@ -32,6 +32,8 @@ PAST_APPLES_TRIES = 150
 #: The slowest a joint move is made to pass apples (a fraction of the planner's speed), and the margin below the
 #: pass speed each slowing aims at (link speeds scale with the move's).
 MIN_SLOW, SLOW_MARGIN = 0.3, 0.9
+#: s: a move slowed past apples is slowed from this long before it comes within reach of them to this long after.
+WINDOW_PAD = 0.1
 #: rad: the tilts tried, in steps up to the cone.
 TILT_STEP = np.radians(15.0)
 #: Directions of tilt around the grasp axis.
@@ -226,39 +228,82 @@ def _detoured(cycle, make, allowed, detours=None, slow=None):
     return plan, detours, contact
 
 
+@dataclass(frozen=True)
+class Slowed:
+    """A joint move slowed to ``fraction`` of the planner's speed past apples: only between the fractions ``window``
+    ``(first, last)`` of its duration (its own path, more slowly there), or the whole move (``window`` None)."""
+
+    fraction: float
+    window: tuple | None = None
+
+    def __str__(self):
+        return f'{self.fraction:.0%}' + ('' if self.window is None else ' past the apples')
+
+
 def _past_apples(cycle, make, plan, detours, allowed, neighbours):
     """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
     the ``neighbours`` faster than their speed taken around the apples (:func:`_around_apples`), or, where no
-    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed; a slowed move that
-    hits an obstacle is taken around it again, :func:`_detoured`; the plan made that way kept only when clear). A
-    move that neither helps keeps its path (the apple it passes may bruise)."""
+    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed): first only its
+    stretch past the apples (:func:`_window`), else the whole move. A slowed move that hits an obstacle is taken
+    around it again (:func:`_detoured`); the plan made that way is kept only when clear. A move that neither helps
+    keeps its path (the apple it passes may bruise)."""
     checker = cycle.checker
     tried, slow = set(), {}
     while True:
         touch, seg = _fast_touch(checker, plan, neighbours, [label for label in DETOURS if label not in tried])
         if touch is None:
             if slow:
-                plan.extra['slowed'] = ', '.join(f'{label} to {f:.0%}' for label, f in slow.items())
+                plan.extra['slowed'] = ', '.join(f'{label} to {s}' for label, s in slow.items())
             return plan, detours
         tried.add(seg.label)
-        around = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)
-        if around is not None:
-            plan, detours = around
-            continue
-        fraction = 1.0
-        while fraction > MIN_SLOW:
-            fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
-            try:
-                again, again_detours, contact = _detoured(cycle, make, allowed, detours, {**slow, seg.label: fraction})
-            except Unreachable:
-                break
-            if contact is not None:
-                break
-            still = _fast_touch(checker, again, neighbours, [seg.label])[0]
-            if still is None:
-                plan, slow, detours = again, {**slow, seg.label: fraction}, again_detours
-                break
-            touch = still
+        # The quickest of: around the apples, slowed only past them, slowed whole.
+        ways = [_around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)]
+        window = _window(cycle, plan, seg, neighbours)
+        for within in ([None] if window is None else [window, None]):
+            ways.append(_slowed(cycle, make, seg.label, touch, detours, slow, within, allowed, neighbours))
+        ways = [w for w in ways if w is not None]
+        if ways:
+            best = min(ways, key=lambda w: w[0].duration)
+            if len(best) == 2:
+                plan, detours = best
+            else:
+                plan, slow, detours = best
+
+
+def _slowed(cycle, make, label, touch, detours, slow, window, allowed, neighbours):
+    """``(plan, slow, detours)`` with joint move ``label`` (whose fastest pass of an apple is ``touch``) slowed
+    past ``window`` (:class:`Slowed`) just enough that it passes no apple fast, clear of the obstacles; None
+    when no fraction down to MIN_SLOW does."""
+    fraction = 1.0
+    while fraction > MIN_SLOW:
+        fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
+        slower = {**slow, label: Slowed(fraction, window)}
+        try:
+            again, again_detours, contact = _detoured(cycle, make, allowed, detours, slower)
+        except Unreachable:
+            return None
+        if contact is not None:
+            return None
+        still = _fast_touch(cycle.checker, again, neighbours, [label])[0]
+        if still is None:
+            return again, slower, again_detours
+        touch = still
+    return None
+
+
+def _window(cycle, plan, seg, neighbours):
+    """``(first, last)``: the configurations of joint move ``seg`` of ``plan`` WINDOW_PAD s before and after its
+    stretch within reach of the apples (None at the move's own ends); None when that stretch is the whole move."""
+    t, q = cycle.checker.samples(plan.trajectory)
+    inside = np.flatnonzero((t >= seg.start) & (t <= seg.start + seg.duration))
+    near = np.flatnonzero(neighbours.touching(q[inside, :cycle.arm.dof]))
+    if not len(near):
+        return None
+    t_in, t_out = t[inside[near[0]]] - WINDOW_PAD, t[inside[near[-1]]] + WINDOW_PAD
+    if t_in <= seg.start and t_out >= seg.start + seg.duration:
+        return None
+    ends = plan.trajectory.sample([t_in, t_out])[0][:, :cycle.arm.dof]
+    return (None if t_in <= seg.start else ends[0]), (None if t_out >= seg.start + seg.duration else ends[1])
 
 
 def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):

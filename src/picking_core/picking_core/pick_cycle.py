@@ -491,14 +491,18 @@ class PickCycle:
         return (mover or self.planner).via(np.array(qs), method, start, end)
 
     def _mover(self, d, label):
-        """The planner of joint move ``label``: the cycle's, or one at a fraction of its speed (``d.slow``)."""
-        fraction = d.slow.get(label)
-        if fraction is None:
+        """The planner of joint move ``label``: the cycle's, or one slowed as ``d.slow`` says (an
+        :class:`~picking_core.approaches.Slowed`: the whole move, or only its stretch past the apples)."""
+        slowed = d.slow.get(label)
+        if slowed is None:
             return self.planner
+        fraction = slowed.fraction
         if fraction not in self._slowed:
             self._slowed[fraction] = Remembered(self.planner.with_settings(
                 speed_scale=self.planner.settings.speed_scale * fraction))
-        return self._slowed[fraction]
+        if slowed.window is None:
+            return self._slowed[fraction]
+        return _SlowPast(self.planner, self._slowed[fraction], slowed)
 
     def back_home(self, start, gripper_start=None):
         """From rest in the box (where a harvest's last cycle ended) back home: a Plan with the gripper;
@@ -715,3 +719,44 @@ class PickCycle:
 
 
 _LABELS = {'P1': 'approach', 'P2': 'the apple', 'P3': 'lift', 'P4': 'above the box', 'P5': 'into the box'}
+
+
+
+
+class _SlowPast:
+    """A joint move's planner (``planner``, every attribute its own) whose jerk-limited moves run at full speed up
+    to the first configuration of ``slowed.window`` and after the second (None: the move's own start or end), and
+    at ``slowed.fraction`` of it between them; any other move (a method other than ``optimal``, a least duration)
+    is slowed whole by ``whole``."""
+
+    def __init__(self, planner, whole, slowed):
+        self.planner, self.whole, self.slowed = planner, whole, slowed
+
+    def __getattr__(self, name):
+        return getattr(self.planner, name)
+
+    def joint_move(self, q0, qf, method, duration=None, v0=None, a0=None, vf=None, af=None):
+        if method != 'optimal' or duration:
+            return self.whole.joint_move(q0, qf, method, duration, v0, a0, vf, af)
+        return self.via(np.array([q0, qf]), method, (v0, a0), (vf, af))
+
+    def via(self, qs, method, start=None, end=None):
+        if method != 'optimal':
+            return self.whole.via(qs, method, start, end)
+        qs = [np.asarray(q, float) for q in qs]
+        first, last = self.slowed.window
+        i = 0 if first is None else _insert_nearest(qs, first, 0)
+        k = len(qs) - 1 if last is None else _insert_nearest(qs, last, i)
+        scales = tuple(self.slowed.fraction if i <= leg < k else 1.0 for leg in range(len(qs) - 1))
+        return self.planner.via(np.array(qs), method, start, end, scales)
+
+
+def _insert_nearest(qs, q, after):
+    """Insert ``q`` into the joint path ``qs`` (a list) on the leg from point ``after`` on that it lengthens
+    least; its index."""
+    legs = range(after, len(qs) - 1)
+    added = [np.linalg.norm(qs[j] - q) + np.linalg.norm(q - qs[j + 1]) - np.linalg.norm(qs[j + 1] - qs[j])
+             for j in legs]
+    j = legs[int(np.argmin(added))] + 1
+    qs.insert(j, np.asarray(q, float))
+    return j

@@ -1,6 +1,7 @@
 """Apples the arm is not picking: found where a link passes one fast, and passed slowly or around."""
 
 import numpy as np
+import pytest
 from conftest import shipped_harvest, shipped_orchard
 
 from picking_core import approaches
@@ -125,3 +126,66 @@ def test_a_slowed_move_that_would_cut_into_a_twig_is_taken_around_it_again(monke
     assert _fast_in_joint_moves(cycle, plan, neighbours) is None
     assert 'P4 above the box' in plan.extra['slowed'] and 'P4 above the box' in plan.extra['detours']
     assert check(cycle.checker, plan, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
+
+
+
+def _slowed_transfer(monkeypatch, whole=False):
+    """Seed 1's apple 0 with no way around the apples: its transfer slowed past them (or, ``whole``, all of it)."""
+    cycle, orchard = _cycle()
+    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
+    if whole:
+        monkeypatch.setattr(approaches, '_window', lambda *args: None)
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 0
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    plan = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    return cycle, plan, neighbours, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
+
+
+def test_a_move_slowed_only_past_the_apples_is_quicker_than_one_slowed_whole(monkeypatch):
+    cycle, past, neighbours, allowed = _slowed_transfer(monkeypatch)
+    assert 'P4 above the box to' in past.extra['slowed'] and 'P4 above the box' in str(past.extra['slowed'])
+    assert 'past the apples' in past.extra['slowed'].split(', ')[0]
+    _, whole, _, _ = _slowed_transfer(monkeypatch, whole=True)
+    assert 'past the apples' not in whole.extra['slowed']
+    for plan in (past, whole):
+        assert _fast_in_joint_moves(cycle, plan, neighbours) is None
+        assert check(cycle.checker, plan, allowed) is None
+    transfer = [next(s for s in plan.segments if s.label == 'P4 above the box').duration for plan in (past, whole)]
+    assert transfer[0] < transfer[1]
+
+
+def test_a_move_slowed_past_the_apples_runs_at_full_speed_once_past_them(monkeypatch):
+    cycle, plan, neighbours, _ = _slowed_transfer(monkeypatch)
+    seg = next(s for s in plan.segments if s.label == 'P4 above the box')
+    t = np.linspace(seg.start, seg.start + seg.duration, 400)
+    q, qd = plan.trajectory.sample(t)[:2]
+    near = neighbours.touching(q[:, :cycle.arm.dof])
+    use = (np.abs(qd[:, :cycle.arm.dof]) / cycle.planner._vmax).max(axis=1)
+    assert near.any() and not near[-1]
+    # Past the apples the joints keep well below their limits; after them the transfer speeds up again.
+    assert use[near].max() < 0.8 and use[t > t[near].max()].max() > 1.5 * use[near].max()
+
+
+def test_via_points_slowed_leg_by_leg_keep_each_leg_within_its_own_limits(arm):
+    from picking_core.planning import Planner, PlannerSettings
+    planner = Planner(arm, PlannerSettings(limit_jerk=True, method='optimal', path_method='optimal'))
+    qs = np.array([[0.0, 0.2, 1.6, 0.0, -0.2, 0.0], [0.6, 0.0, 1.4, 0.2, 0.0, 0.3],
+                   [1.2, -0.2, 1.2, 0.4, 0.2, 0.6], [1.8, -0.4, 1.0, 0.6, 0.4, 0.9]])
+    full = planner.via(qs, 'optimal')
+    slow = planner.via(qs, 'optimal', scales=(1.0, 0.5, 1.0))
+    assert slow.duration > full.duration
+    # The slowed leg lies between the points 1 and 2: found where the trajectory passes them.
+    t = np.linspace(0.0, slow.duration, 4001)
+    q, qd = slow.sample(t)[:2]
+    at = [int(np.argmin(np.linalg.norm(q[:, :6] - p, axis=1))) for p in qs[1:3]]
+    use = np.abs(qd) / planner._vmax
+    assert use[at[0]:at[1] + 1].max() <= 0.5 + 1e-6
+    assert use[:at[0]].max() > 0.5 and use[at[1]:].max() > 0.5
+    assert np.allclose(slow.end_state()[0], qs[-1])
+    for bad in ((1.0, 0.5), (1.0, 0.0, 1.0), (1.0, 1.5, 1.0)):
+        with pytest.raises(ValueError):
+            planner.via(qs, 'optimal', scales=bad)
+    with pytest.raises(ValueError):
+        planner.via(qs, 'via_lspb', scales=(1.0, 0.5, 1.0))

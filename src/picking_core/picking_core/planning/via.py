@@ -61,7 +61,7 @@ class ViaMoves:
                 raise Unreachable(f'pose {i}: {exc}') from None
         return np.array(qs)
 
-    def via(self, qs, method, start=None, end=None):
+    def via(self, qs, method, start=None, end=None, scales=None):
         """Joint via points timed from the limits, stretched until feasible.
 
         Each segment starts from the rest-to-rest time of its slowest joint (60 % of
@@ -69,10 +69,13 @@ class ViaMoves:
         grow by 4 % until the blends fit and the scaled limits hold (a quintic spline
         too fast for them stretches by exactly the factor it needs). ``start`` and
         ``end``: ``(velocity, acceleration)`` at the first and last point, ``optimal`` only
-        (default at rest).
+        (default at rest). ``scales``: a speed fraction for each leg between the points (its limits scaled as
+        ``speed_scale`` scales them), ``optimal`` only (default all 1).
         """
         if method == 'optimal':
-            return self._optimal_via(np.asarray(qs, float), start, end)
+            return self._optimal_via(np.asarray(qs, float), start, end, scales)
+        if scales is not None:
+            raise ValueError('only optimal via points are slowed leg by leg')
         if start is not None or end is not None:
             raise ValueError('only optimal via points start or end moving')
         profile = 'lspb' if method == 'via_lspb' else 'quintic'
@@ -117,7 +120,7 @@ class ViaMoves:
                 durations = durations * 1.04
         raise Unreachable(f'{method}: no timing within the joint limits ({last})')
 
-    def _optimal_via(self, qs, start=None, end=None):
+    def _optimal_via(self, qs, start=None, end=None, scales=None):
         """Jerk-limited, time-optimal segments through via points, passed at speed.
 
         A joint passes a via point at a multiple of the mean of its neighbouring
@@ -125,25 +128,32 @@ class ViaMoves:
         stops where it turns back; each segment is then Ruckig's fastest move
         between those states. The multiple is the fastest of VIA_SPEEDS (the mean
         itself is often too slow: a transfer's via point cost 0.1 s over the direct
-        move at 1x, nothing at 2x).
+        move at 1x, nothing at 2x). A leg slowed to a fraction of the speed (``scales``) has its limits scaled as
+        ``speed_scale`` scales them, and its ends are passed within its velocity limit.
         """
         (v0, a0), (vf, af) = start or (None, None), end or (None, None)
-        if len(qs) == 2:
+        f = np.ones(len(qs) - 1) if scales is None else np.asarray(scales, float)
+        if len(f) != len(qs) - 1 or not np.all((f > 0.0) & (f <= 1.0)):
+            raise ValueError(f'a speed fraction in (0, 1] for each of the {len(qs) - 1} legs, got {scales}')
+        if len(qs) == 2 and f[0] == 1.0:
             return self.joint_move(qs[0], qs[1], 'optimal', v0=v0, a0=a0, vf=vf, af=af)
-        chords = self._shortest_durations(qs, 'lspb')
+        chords = self._shortest_durations(qs, 'lspb') / f
         slopes = np.diff(qs, axis=0) / chords[:, None]
         onward = np.sign(slopes[:-1]) == np.sign(slopes[1:])
         mean = np.where(onward, 0.5 * (slopes[:-1] + slopes[1:]), 0.0)
+        # (A point is passed within the velocity limit of both legs it joins.)
+        vlim = self._vmax * np.minimum(f[:-1], f[1:])[:, None]
         best, error = None, None
         for scale in VIA_SPEEDS:
             v = np.zeros_like(qs)
-            v[1:-1] = np.clip(scale * mean, -self._vmax, self._vmax)
+            v[1:-1] = np.clip(scale * mean, -vlim, vlim)
             a = np.zeros_like(qs)
             for i, vi, ai in ((0, v0, a0), (-1, vf, af)):
                 v[i], a[i] = (0.0 if vi is None else vi), (0.0 if ai is None else ai)
             try:
-                parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax, self._amax, self._jmax, v[i], a[i],
-                                                 v[i + 1], a[i + 1]) for i in range(len(qs) - 1)]
+                parts = [trajectory.time_optimal(qs[i], qs[i + 1], self._vmax * f[i], self._amax * f[i] ** 2,
+                                                 self._jmax * f[i] ** 3, v[i], a[i], v[i + 1], a[i + 1])
+                         for i in range(len(qs) - 1)]
             except ValueError as exc:
                 error = str(exc)            # (not the exception: with its traceback, a cycle)
                 continue
