@@ -178,8 +178,9 @@ def clear_cycle(cycle, plan_one, T_apple, neighbours=None):
 
 
 def clear_plan(cycle, make, allowed, neighbours=None):
-    """``(plan, contact)``: ``make(detours)``'s plan (``make(detours, slow)`` when moves are slowed) and its first contact (None: clear). A joint move
-    that hits something (one of the cycle's DETOURS) goes around it (:func:`_detoured`). With
+    """``(plan, contact)``: ``make(detours)``'s plan (``make(detours, slow)`` when moves are slowed) and its first
+    contact (None: clear). A joint move that hits something (one of the cycle's DETOURS) goes around it
+    (:func:`_detoured`). With
     ``neighbours`` (:class:`~picking_core.collision.fruit.Neighbours`, the apples not being picked), a
     clear plan's joint moves that pass an apple too fast go around the apples too (:func:`_past_apples`)."""
     if cycle.checker is None:
@@ -230,8 +231,9 @@ def _detoured(cycle, make, allowed, detours=None, slow=None):
 
 @dataclass(frozen=True)
 class Slowed:
-    """A joint move slowed to ``fraction`` of the planner's speed past apples: only between the fractions ``window``
-    ``(first, last)`` of its duration (its own path, more slowly there), or the whole move (``window`` None)."""
+    """A joint move slowed to ``fraction`` of the planner's speed past apples: only between the configurations
+    ``window`` ``(first, last)`` it passes through (None: its own start or end), or the whole move (``window``
+    None)."""
 
     fraction: float
     window: tuple | None = None
@@ -242,11 +244,10 @@ class Slowed:
 
 def _past_apples(cycle, make, plan, detours, allowed, neighbours):
     """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
-    the ``neighbours`` faster than their speed taken around the apples (:func:`_around_apples`), or, where no
-    way around is found, slowed until it passes none fast (at most to MIN_SLOW of its speed): first only its
-    stretch past the apples (:func:`_window`), else the whole move. A slowed move that hits an obstacle is taken
-    around it again (:func:`_detoured`); the plan made that way is kept only when clear. A move that neither helps
-    keeps its path (the apple it passes may bruise)."""
+    the ``neighbours`` faster than their speed made the quickest of: taken around the apples
+    (:func:`_around_apples`), slowed only over its stretch past them (:func:`_window`) or slowed whole, until it
+    passes none fast (at most to MIN_SLOW of its speed; :func:`_slowed`). A move that none of these helps keeps its
+    path (the apple it passes may bruise)."""
     checker = cycle.checker
     tried, slow = set(), {}
     while True:
@@ -256,31 +257,28 @@ def _past_apples(cycle, make, plan, detours, allowed, neighbours):
                 plan.extra['slowed'] = ', '.join(f'{label} to {s}' for label, s in slow.items())
             return plan, detours
         tried.add(seg.label)
-        # The quickest of: around the apples, slowed only past them, slowed whole.
-        ways = [_around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)]
+        around = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)
+        ways = [] if around is None else [(around[0], slow, around[1])]
         window = _window(cycle, plan, seg, neighbours)
         for within in ([None] if window is None else [window, None]):
             ways.append(_slowed(cycle, make, seg.label, touch, detours, slow, within, allowed, neighbours))
         ways = [w for w in ways if w is not None]
         if ways:
-            best = min(ways, key=lambda w: w[0].duration)
-            if len(best) == 2:
-                plan, detours = best
-            else:
-                plan, slow, detours = best
+            plan, slow, detours = min(ways, key=lambda w: w[0].duration)
 
 
 def _slowed(cycle, make, label, touch, detours, slow, window, allowed, neighbours):
     """``(plan, slow, detours)`` with joint move ``label`` (whose fastest pass of an apple is ``touch``) slowed
-    past ``window`` (:class:`Slowed`) just enough that it passes no apple fast, clear of the obstacles; None
-    when no fraction down to MIN_SLOW does."""
+    past ``window`` (:class:`Slowed`) just enough that it passes no apple fast; a slowed move that hits an
+    obstacle taken around it again (:func:`_detoured`); None when no fraction down to MIN_SLOW makes a clear
+    plan."""
     fraction = 1.0
     while fraction > MIN_SLOW:
         fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
         slower = {**slow, label: Slowed(fraction, window)}
         try:
             again, again_detours, contact = _detoured(cycle, make, allowed, detours, slower)
-        except Unreachable:
+        except (Unreachable, ValueError):         # (no timing within the limits through the slowed legs)
             return None
         if contact is not None:
             return None
