@@ -31,7 +31,7 @@ setup(
             'picking-goal = picking_bringup.picking_goal:main',
             'picking-plan = picking_bringup.plan:main',
             'picking-demo = picking_bringup.demo:main',
-            'picking-foxglove = picking_bringup.foxglove:main',
+            'picking-foxglove = picking_bringup.start:foxglove',
         ],
     },
 )

@@ -21,8 +21,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'picking-controller = picking_controller.node:main',
-            'controller = picking_controller.node:main',
+            'picking-controller = picking_controller.start:controller',
+            'controller = picking_controller.start:controller',
         ],
     },
 )

@@ -21,10 +21,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'picking-planner = picking_planner.node:main',
-            'picking-harvester = picking_planner.harvester:main',
-            'planner = picking_planner.node:main',
-            'harvester = picking_planner.harvester:main',
+            'picking-planner = picking_planner.start:planner',
+            'picking-harvester = picking_planner.start:harvester',
+            'planner = picking_planner.start:planner',
+            'harvester = picking_planner.start:harvester',
         ],
     },
 )

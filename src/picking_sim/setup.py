@@ -21,10 +21,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'picking-sim = picking_sim.node:main',
-            'sim = picking_sim.node:main',
-            'picking-state-publisher = picking_sim.state_publisher:main',
-            'state_publisher = picking_sim.state_publisher:main',
+            'picking-sim = picking_sim.start:sim',
+            'sim = picking_sim.start:sim',
+            'picking-state-publisher = picking_sim.start:state_publisher',
+            'state_publisher = picking_sim.start:state_publisher',
         ],
     },
 )

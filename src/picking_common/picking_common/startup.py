@@ -1,0 +1,27 @@
+"""A node process's first step: Ctrl-C or SIGTERM while it is still starting ends it quietly.
+
+A node's module imports numpy, scipy, rclpy and its messages before it can handle a signal, and Python's own
+handler turns Ctrl-C there into a KeyboardInterrupt traceback wherever the import happens to be (a stack stopped
+while one of its nodes fails to start, or a user's Ctrl-C during bring-up). The console scripts therefore call
+:func:`quietly`, which imports only the standard library, takes those signals as a request to stop (exit code 0,
+nothing printed), then imports the node and runs it; once running, a node handles them itself (rclpy's handlers,
+:func:`picking_common.run.run_node`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+
+
+def _stop(signum, frame):
+    raise SystemExit(0)
+
+
+def quietly(target):
+    """Run ``target`` (``'module:function'``), the signals that stop a node ending it quietly until it takes them
+    over; its return value (the process's exit code)."""
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    module, function = target.split(':')
+    return getattr(importlib.import_module(module), function)()
