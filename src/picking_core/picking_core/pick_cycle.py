@@ -721,8 +721,6 @@ class PickCycle:
 _LABELS = {'P1': 'approach', 'P2': 'the apple', 'P3': 'lift', 'P4': 'above the box', 'P5': 'into the box'}
 
 
-
-
 class _SlowPast:
     """A joint move's planner (``planner``, every attribute its own) whose jerk-limited moves run at full speed up
     to the first configuration of ``slowed.window`` and after the second (None: the move's own start or end), and
