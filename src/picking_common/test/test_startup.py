@@ -45,8 +45,10 @@ def test_a_node_that_runs_gives_its_own_exit_code(tmp_path):
 def test_without_it_python_prints_a_traceback(tmp_path):
     # (Why the nodes start through it: the same import under Python's own handler.)
     (tmp_path / 'slow_node.py').write_text(SLOW)
+    # (Python keeps Ctrl-C ignored in a process started with it ignored, as a test runner may start this one.)
     proc = subprocess.Popen([sys.executable, '-c', f'import sys; sys.path.insert(0, {str(tmp_path)!r}); '
-                             'import slow_node'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             'import slow_node'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout.readline().strip() == 'importing'
         proc.send_signal(signal.SIGINT)
