@@ -116,38 +116,31 @@ def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_th
 def test_a_slowed_move_that_would_cut_into_a_twig_is_taken_around_it_again(monkeypatch):
     # (Seed 2's apple 2: its transfer goes around twig 1 through waypoints and passes apple 6 fast; slowed, the
     # timed move between the same waypoints cuts into the twig.)
-    cycle, orchard = _cycle(seed=2)
-    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
-    centres = np.array([T[:3, 3] for T in orchard.apples])
-    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
-    target = 2
-    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
-    plan = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    cycle, plan, neighbours, allowed = _without_a_way_around(monkeypatch, seed=2, target=2)
     assert _fast_in_joint_moves(cycle, plan, neighbours) is None
     assert 'P4 above the box' in plan.extra['slowed'] and 'P4 above the box' in plan.extra['detours']
-    assert check(cycle.checker, plan, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
+    assert check(cycle.checker, plan, allowed) is None
 
 
-
-def _slowed_transfer(monkeypatch, whole=False):
-    """Seed 1's apple 0 with no way around the apples: its transfer slowed past them (or, ``whole``, all of it)."""
-    cycle, orchard = _cycle()
+def _without_a_way_around(monkeypatch, seed=1, target=0, whole=False):
+    """The cycle of apple ``target`` of tree ``seed`` with no way around the apples: its moves that pass them fast
+    slowed past them (or, ``whole``, all of each); ``(cycle, plan, neighbours, allowed)``."""
+    cycle, orchard = _cycle(seed)
     monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
     if whole:
         monkeypatch.setattr(approaches, '_window', lambda *args: None)
     centres = np.array([T[:3, 3] for T in orchard.apples])
     home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
-    target = 0
     neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
     plan = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
     return cycle, plan, neighbours, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
 
 
 def test_a_move_slowed_only_past_the_apples_is_quicker_than_one_slowed_whole(monkeypatch):
-    cycle, past, neighbours, allowed = _slowed_transfer(monkeypatch)
+    cycle, past, neighbours, allowed = _without_a_way_around(monkeypatch)
     assert 'P4 above the box to' in past.extra['slowed'] and 'P4 above the box' in str(past.extra['slowed'])
     assert 'past the apples' in past.extra['slowed'].split(', ')[0]
-    _, whole, _, _ = _slowed_transfer(monkeypatch, whole=True)
+    _, whole, _, _ = _without_a_way_around(monkeypatch, whole=True)
     assert 'past the apples' not in whole.extra['slowed']
     for plan in (past, whole):
         assert _fast_in_joint_moves(cycle, plan, neighbours) is None
@@ -157,7 +150,7 @@ def test_a_move_slowed_only_past_the_apples_is_quicker_than_one_slowed_whole(mon
 
 
 def test_a_move_slowed_past_the_apples_runs_at_full_speed_once_past_them(monkeypatch):
-    cycle, plan, neighbours, _ = _slowed_transfer(monkeypatch)
+    cycle, plan, neighbours, _ = _without_a_way_around(monkeypatch)
     seg = next(s for s in plan.segments if s.label == 'P4 above the box')
     t = np.linspace(seg.start, seg.start + seg.duration, 400)
     q, qd = plan.trajectory.sample(t)[:2]
