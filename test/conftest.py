@@ -35,17 +35,29 @@ def pytest_runtest_setup(item):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
-    """A failing system test's report ends with the logs of the nodes that ran during it."""
+    """A failing system test's report ends with the logs of the nodes that ran during it, and the stacks of every
+    thread of each (those still running are asked now; rosstack's stacks ask theirs as the failure stops them)."""
     report = (yield).get_result()
     if not report.failed:
         return
-    from picking_bringup.stack import NodeProcess
+    from picking_bringup.stack import NodeProcess, write_stacks
     since = getattr(item, 'started_at', 0.0)
-    for proc in NodeProcess.started:
-        if proc.stopped_at is None or proc.stopped_at >= since:
-            lines = proc.output().splitlines()[-LOG_TAIL:]
-            report.sections.append((f'{proc.name} (pid {proc.pid}) log, last {len(lines)} lines',
-                                    '\n'.join(lines)))
+    ran = [p for p in NodeProcess.started if p.stopped_at is None or p.stopped_at >= since]
+    write_stacks(ran)
+    for proc in ran:
+        log, stacks = _stacks_apart(proc.output())
+        lines = log.splitlines()[-LOG_TAIL:]
+        report.sections.append((f'{proc.name} (pid {proc.pid}) log, last {len(lines)} lines', '\n'.join(lines)))
+        if stacks:
+            report.sections.append((f'{proc.name} (pid {proc.pid}) threads', stacks))
+
+
+def _stacks_apart(output):
+    """A node's log and the thread stacks its faulthandler wrote into it (from the first: '' if none)."""
+    lines = output.splitlines(keepends=True)
+    first = next((i for i, line in enumerate(lines) if line.startswith(('Thread 0x', 'Current thread 0x'))),
+                 len(lines))
+    return ''.join(lines[:first]), ''.join(lines[first:]).strip()
 
 
 def pytest_addoption(parser):

@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_bringup import stack as launcher
-from picking_bringup.stack import NodeProcess, stop_all  # noqa: F401  (the tests stop processes with it)
+from picking_bringup.stack import NodeProcess, stop_all, write_stacks  # noqa: F401  (the tests stop processes with it)
 from picking_common.middleware import use_fast_discovery
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import LatestMessage
@@ -317,6 +317,9 @@ def running_stack(ns, log_dir, **args):
     try:
         client.wait_ready()
         yield stack, client
+    except BaseException:
+        write_stacks(stack.processes)                # (the failing test's report shows them)
+        raise
     finally:
         codes = stack.stop()
         client.close()

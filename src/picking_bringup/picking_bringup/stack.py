@@ -145,6 +145,17 @@ def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
     return [p.reap(deadline) for p in processes]
 
 
+def write_stacks(processes, wait=0.5):
+    """Ask every one of ``processes`` still running for its threads' stacks (SIGUSR1: a node's faulthandler writes
+    them to its log and it runs on) and give them ``wait`` s to write them: what a node that went silent was
+    doing."""
+    running = [p for p in processes if p.alive()]
+    for p in running:
+        p.signal(signal.SIGUSR1)
+    if running:
+        time.sleep(wait)
+
+
 #: s without a joint_commands message before :meth:`Stack.wait_ready` subscribes again.
 RESUBSCRIBE = 10.0
 _probe = []

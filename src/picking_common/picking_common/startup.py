@@ -5,11 +5,13 @@ handler turns Ctrl-C there into a KeyboardInterrupt traceback wherever the impor
 while one of its nodes fails to start, or a user's Ctrl-C during bring-up). The console scripts therefore call
 :func:`quietly`, which imports only the standard library, takes those signals as a request to stop (exit code 0,
 nothing printed), then imports the node and runs it; once running, a node handles them itself (rclpy's handlers,
-:func:`picking_common.run.run_node`).
+:func:`picking_common.run.run_node`). ``kill -USR1 <pid>`` writes every thread's stack from the start too (a node
+that seems stuck while it starts), instead of killing it.
 """
 
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import signal
 
@@ -23,5 +25,7 @@ def quietly(target):
     over; its return value (the process's exit code)."""
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
+    if hasattr(signal, 'SIGUSR1'):
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
     module, function = target.split(':')
     return getattr(importlib.import_module(module), function)()

@@ -36,6 +36,21 @@ def test_a_node_stopped_while_it_imports_exits_0_saying_nothing(tmp_path, sig):
     assert proc.returncode == 0 and 'Traceback' not in err, err
 
 
+def test_a_node_asked_for_its_stacks_while_it_imports_writes_them_and_goes_on(tmp_path):
+    proc = _started(tmp_path, SLOW, 'slow_node:main')
+    try:
+        assert proc.stdout.readline().strip() == 'importing'
+        proc.send_signal(signal.SIGUSR1)
+        lines = [proc.stderr.readline() for _ in range(3)]
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+    assert any('slow_node.py' in line for line in lines), lines
+    assert proc.returncode == 0
+
+
 def test_a_node_that_runs_gives_its_own_exit_code(tmp_path):
     proc = _started(tmp_path, 'def main():\n    return 3\n', 'slow_node:main')
     proc.communicate(timeout=20)
