@@ -1,7 +1,7 @@
 """The middleware settings every picking process starts with (before ``rclpy.init``).
 
 With Fast DDS (ROS 2 Jazzy's default middleware) and no profile of the user's own, the processes load
-``fastdds.xml`` beside this module: each participant announces itself every 0.2 s, so that a process started beside
+``fastdds.xml`` beside this module: each participant announces itself every 0.1 s, so that a process started beside
 running nodes discovers them in a fraction of a second, and sends its data over loopback UDP, not through shared
 memory ports a stall can leave unread (see docs/deployment.md). A user's own profile
 (``FASTRTPS_DEFAULT_PROFILES_FILE`` or ``FASTDDS_DEFAULT_PROFILES_FILE``), or another middleware, is left alone.

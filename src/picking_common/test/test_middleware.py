@@ -25,11 +25,11 @@ def test_a_profile_of_the_users_own_or_another_middleware_is_left_alone():
         assert not use_fast_discovery(env) and env == before
 
 
-def test_the_profile_is_the_default_participant_announcing_every_fifth_of_a_second():
+def test_the_profile_is_the_default_participant_announcing_every_tenth_of_a_second():
     participant = ET.parse(PROFILE).getroot().find(f'{NS}participant')
     assert participant.get('is_default_profile') == 'true'
     period = participant.find(f'{NS}rtps/{NS}builtin/{NS}discovery_config/{NS}leaseAnnouncement')
-    assert int(period.find(f'{NS}sec').text) + int(period.find(f'{NS}nanosec').text) * 1e-9 == 0.2
+    assert int(period.find(f'{NS}sec').text) + int(period.find(f'{NS}nanosec').text) * 1e-9 == 0.1
 
 
 def test_reliable_writers_heartbeat_every_tenth_of_a_second():
