@@ -65,7 +65,7 @@ def test_every_picking_plan_example_runs(tmp_path):
         if '--out' not in args:
             args += ['--out', tmp_path / 'plan']
         done = run('picking-plan', *args)
-        assert done.returncode == 0, (line, done.stderr)
+        assert done.returncode == 0, '\n'.join((line, done.stderr))
 
 
 def test_picking_plan_takes_its_options_after_the_method_and_rest_for_any_number_of_joints(tmp_path):
@@ -100,7 +100,7 @@ def test_every_picking_goal_example_reaches_its_goal_on_a_running_arm(tmp_path):
         stack.wait_ready()
         for line in found:
             done = run(*shlex.split(line), '--ros-args', '-r', '__ns:=/cli', timeout=120)
-            assert done.returncode == 0, (line, done.stdout, done.stderr)
+            assert done.returncode == 0, '\n'.join((line, done.stdout, done.stderr))
             if 'stop' not in line:
                 # (An action goal's id is its UUID; a harvest, a topic goal, is named by its stamp.)
                 assert 'succeeded' in done.stdout and re.search(r'goal ([0-9a-f]{32}|\d+\.\d{9})', done.stdout), \
@@ -121,7 +121,7 @@ def test_every_picking_stack_example_brings_the_arm_up_and_down(tmp_path):
         if '--for' in args:                         # our own duration instead
             del args[args.index('--for'):args.index('--for') + 2]
         done = run('picking-stack', *args, '--for', 2, '--log-dir', tmp_path, timeout=120)
-        assert done.returncode == 0, (line, done.stdout, done.stderr)
+        assert done.returncode == 0, '\n'.join((line, done.stdout, done.stderr))
         assert 'is up' in done.stdout and 'exit code 0' in done.stdout, done.stdout
 
 

@@ -91,7 +91,7 @@ def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path)
         time.sleep(2.0)                                   # the camera's frames confirm the apples
         done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', '120', '--ros-args', '-r',
                                '__ns:=/fruit2'], capture_output=True, text=True, timeout=180)
-        assert done.returncode == 0, (done.stdout, done.stderr)
+        assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
         assert 'a harvest of the apples seen' in done.stdout and 'succeeded' in done.stdout, done.stdout
         client.wait_for(lambda: events and int(status_values(events[-1])['in_the_box']) == n, 5.0,
                         f'{n} apples in the box by the simulator\'s count: {[e.message for e in events]}')
