@@ -36,7 +36,8 @@ def pytest_runtest_setup(item):
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     """A failing system test's report ends with the logs of the nodes that ran during it, and the stacks of every
-    thread of each (those still running are asked now; rosstack's stacks ask theirs as the failure stops them)."""
+    thread of each (those still running are asked now; rosstack's running_stack asks its nodes as the failure stops
+    them)."""
     report = (yield).get_result()
     if not report.failed:
         return
@@ -53,11 +54,12 @@ def pytest_runtest_makereport(item, call):
 
 
 def _stacks_apart(output):
-    """A node's log and the thread stacks its faulthandler wrote into it (from the first: '' if none)."""
-    lines = output.splitlines(keepends=True)
-    first = next((i for i, line in enumerate(lines) if line.startswith(('Thread 0x', 'Current thread 0x'))),
-                 len(lines))
-    return ''.join(lines[:first]), ''.join(lines[first:]).strip()
+    """A node's log lines and the lines of the thread stacks its faulthandler wrote among them ('' if none)."""
+    log, stacks = [], []
+    for line in output.splitlines():
+        dump = line.startswith(('Thread 0x', 'Current thread 0x', '  File "', '  <no Python frame>'))
+        (stacks if dump else log).append(line)
+    return '\n'.join(log), '\n'.join(stacks)
 
 
 def pytest_addoption(parser):
