@@ -6,7 +6,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
-from picking_common.middleware import PROFILE, use_fast_discovery
+from picking_common.middleware import PROFILE, PROFILE_VARIABLES, use_fast_discovery
 
 NS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
 
@@ -39,15 +39,24 @@ def test_reliable_writers_heartbeat_every_tenth_of_a_second():
     assert int(period.find(f'{NS}sec').text) + int(period.find(f'{NS}nanosec').text) * 1e-9 == 0.1
 
 
+def _fast_dds_env(profile, **more):
+    """This process's environment for a Fast DDS child on loopback: with the shipped profile only, or (``profile``
+    false) with none."""
+    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp', **more}
+    for v in PROFILE_VARIABLES:
+        env.pop(v, None)
+    if profile:
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(PROFILE)
+    return env
+
+
 def test_fast_dds_reads_the_profile_without_an_error():
     """Fast DDS skips what it cannot parse with only a line on stderr: a process that creates a participant and a
     writer with the profile prints none."""
     code = ('import rclpy; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node("profile_check"); '
             'n.create_publisher(String, "profile_check", 10).publish(String()); n.destroy_node(); rclpy.shutdown()')
-    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp',
-           'FASTRTPS_DEFAULT_PROFILES_FILE': str(PROFILE)}
-    env.pop('FASTDDS_DEFAULT_PROFILES_FILE', None)
-    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=60)
+    done = subprocess.run([sys.executable, '-c', code], env=_fast_dds_env(profile=True), capture_output=True,
+                          text=True, timeout=60)
     assert done.returncode == 0 and 'XMLPARSER' not in done.stderr and 'Error' not in done.stderr, done.stderr
 
 
@@ -59,12 +68,7 @@ def _shm_ports_while_talking(profile):
     # A domain no earlier process left a port of (a process killed leaves its ports behind).
     domain = next(d for d in range(150 + os.getpid() % 80, 232) if not ports(d) & set(os.listdir('/dev/shm')))
     user_ports = ports(domain)
-    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'ROS_DOMAIN_ID': str(domain),
-           'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp'}
-    for v in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE'):
-        env.pop(v, None)
-    if profile:
-        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(PROFILE)
+    env = _fast_dds_env(profile, ROS_DOMAIN_ID=str(domain))
     talker = ('import rclpy, time; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node("talker"); '
               'p = n.create_publisher(String, "chat", 10)\nwhile True: p.publish(String(data="hi")); time.sleep(0.05)')
     listener = ('import rclpy; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node("listener"); '
