@@ -49,7 +49,8 @@ class MapSettings:
 @dataclass
 class Track:
     """An apple seen: ``id``, its position estimate ``x`` (3,) and covariance ``P`` (3, 3) (base frame, m: where
-    it hangs), its diameter (m), ``hits``, when first and last seen (s), and ``motion``, how it moves."""
+    it hangs), its diameter (m), ``hits``, when first and last seen (s), ``origin`` (3,) m where it was first seen,
+    and ``motion``, how it moves."""
 
     id: int
     x: np.ndarray
@@ -59,7 +60,18 @@ class Track:
     first: float
     last: float
     confirmed: bool = False
+    origin: np.ndarray | None = None
     motion: SwayFit = field(default_factory=SwayFit)
+
+    def __post_init__(self):
+        if self.origin is None:
+            self.origin = np.array(self.x, float)
+
+    def settled(self, t, within):
+        """Whether it has been seen for ``t`` s or more, its estimate still within ``within`` m of where it was first
+        seen: an apple hanging on the tree (one the arm carries past, or holds over the box, is seen at one place
+        for less)."""
+        return self.last - self.first >= t and float(np.linalg.norm(self.x - self.origin)) <= within
 
 
 class FruitMap:
@@ -107,14 +119,14 @@ class FruitMap:
         self.refused.update(refused)
         return refused
 
-    def targets(self):
-        """The confirmed tracks, oldest first."""
-        return [k for k in self.tracks if k.confirmed]
+    def targets(self, settled=0.0):
+        """The confirmed tracks, oldest first; with ``settled`` s, only those :meth:`Track.settled` that long."""
+        return [k for k in self.tracks if k.confirmed and (settled <= 0.0 or k.settled(settled, self.settings.gate))]
 
-    def grasp_poses(self, rpy=SIDEWAYS):
-        """The confirmed apples as a harvest's grasp poses (4x4, base frame): each at its centre estimate, the
-        gripper turned by roll-pitch-yaw ``rpy`` (rad)."""
-        targets = self.targets()
+    def grasp_poses(self, rpy=SIDEWAYS, settled=0.0):
+        """The confirmed apples (``settled`` as :meth:`targets` takes it) as a harvest's grasp poses (4x4, base
+        frame): each at its centre estimate, the gripper turned by roll-pitch-yaw ``rpy`` (rad)."""
+        targets = self.targets(settled)
         T = np.tile(np.eye(4), (len(targets), 1, 1))
         T[:, :3, :3] = Rotation.from_euler('xyz', rpy).as_matrix()
         T[:, :3, 3] = np.array([k.x for k in targets]).reshape(-1, 3)

@@ -326,6 +326,33 @@ class Harvest:
         return HarvestPlan(plan, tuple(times), skipped, est, given, ordering_s, empty_below(self.cycle.s.gripper_closed))
 
 
+#: m: an apple seen this near one a harvest has (picked, in hand or to come) is that apple.
+KNOWN_APPLE = 0.05
+#: s an apple must have been seen at one place before a running harvest takes it in (FruitMap.targets: an apple
+#: the arm carries past, or holds over the box, is not).
+SETTLED = 0.5
+#: m: an apple seen this near the box's drop point is one the arm has let go of, never one to pick.
+BOX_CLEAR = 0.15
+
+
+def new_apples(seen, known, box, near=KNOWN_APPLE, clear=BOX_CLEAR):
+    """The grasp poses of ``seen`` (4x4 each) that are no apple a harvest knows: farther than ``near`` m from every
+    place of ``known`` ((N, 3) m, its apples, picked or not) and from each other's, and farther than ``clear`` m from
+    ``box`` (3,), the drop point. The camera shows an apple the arm hid at home, or one behind an apple just
+    picked, only as the harvest runs: these join its apples still to come."""
+    places = [np.asarray(p, float) for p in np.asarray(known, float).reshape(-1, 3)]
+    out = []
+    for T in seen:
+        p = np.asarray(T, float)[:3, 3]
+        if np.linalg.norm(p - np.asarray(box, float)) <= clear:
+            continue
+        if places and min(np.linalg.norm(p - q) for q in places) <= near:
+            continue
+        out.append(np.asarray(T, float))
+        places.append(p)
+    return out
+
+
 class HarvestGoal:
     """``plan(start, gripper)`` of a harvest goal, as the planner node calls every goal's: the
     harvest of ``apples`` (their ``indices`` in the goal: by default their places) from ``start``;

@@ -89,3 +89,21 @@ def test_the_confirmed_apples_are_a_harvests_grasp_poses_sideways_at_their_estim
     poses = fruit_map.grasp_poses()
     assert len(poses) == 1 and np.allclose(poses[0][:3, 3], apple, atol=0.005)
     assert np.allclose(poses[0][:3, :3], Rotation.from_euler('xyz', SIDEWAYS).as_matrix())
+
+
+def test_only_apples_seen_at_one_place_long_enough_are_settled():
+    """An apple hanging still is settled after SETTLED s; one the arm carries past (its detections walk away from
+    where its track began) never is, however often it is seen."""
+    from picking_core.harvest import SETTLED
+    fruit_map = FruitMap()
+    R = np.eye(3) * 0.003 ** 2
+    for k in range(30):
+        t = k / 30
+        carried = [0.5, 0.0, 0.4 + 0.01 * k]                          # rising 0.3 m/s
+        fruit_map.update(t, np.array([[0.7, 0.1, 0.6], carried]), np.stack([R, R]))
+        if t < SETTLED:
+            assert fruit_map.targets(SETTLED) == []
+    settled = fruit_map.targets(SETTLED)
+    assert len(fruit_map.targets()) >= 2 and len(settled) == 1
+    assert np.allclose(settled[0].x, [0.7, 0.1, 0.6], atol=0.003)
+    assert len(fruit_map.grasp_poses(settled=SETTLED)) == 1

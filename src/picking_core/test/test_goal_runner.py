@@ -679,3 +679,100 @@ def test_a_pick_succeeds_only_when_the_measured_fingers_carried_its_apple(port, 
     runner.on_result(flight, 'succeeded', 0, '')
     assert port.states('p')[-1] == outcome
     assert (outcome == 'aborted') == ('not in the fingers' in port.statuses[-1]['text'])
+
+
+def _seen_harvest(runner, port, ys=(0.15, 0.3)):
+    R = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
+    apples = [np.block([[R, np.array([[0.7], [y], [0.6]])], [np.zeros((1, 3)), np.ones((1, 1))]]) for y in ys]
+    runner.take(Goal(Kind.HARVEST, 'h', Target(Kind.HARVEST, tuple(apples), seen=True), 0.0))
+    flight = accept(runner, port)
+    runner.on_feedback(flight, port.t, 0.0, 0.0)
+    return apples, flight
+
+
+def test_an_apple_seen_while_a_harvest_of_the_apples_seen_runs_joins_it_as_the_same_goal(port):
+    """The camera shows an apple the arm hid at home once the arm is away: it joins the apples not started,
+    planned again from the box after the apple in hand; the apples the harvest knows are never taken in twice."""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port)
+    plan = flight.planned.harvest
+    port.t = flight.start + 0.5 * plan.apples[0].end
+    new = apples[0].copy()
+    new[:3, 3] = [0.65, 0.0, 0.55]
+    # The apples it has (seen again, a few millimetres off) are no new ones.
+    again = [T.copy() for T in apples]
+    again[0][:3, 3] += 0.004
+    assert runner.seen_more(again) == 0 and len(port.sent) == 1
+    assert runner.seen_more([*again, new]) == 1
+    assert 'replanned' in port.states('h')
+    rest, _, stamp = port.sent[-1]
+    assert rest.goal.key == 'h' and stamp == pytest.approx(flight.start + plan.apples[0].end)
+    redone = rest.planned.harvest
+    later = sorted(a.index for a in plan.apples[1:])
+    assert sorted([a.index for a in redone.apples] + [s.index for s in redone.skipped]) == sorted([*later, 2])
+    assert runner.seen_more([*again, new]) == 0                        # taken in once, even before it is accepted
+    accept(runner, port)
+    runner.on_result(flight, 'aborted', -1, 'preempted: a newer trajectory took over from it')
+    assert runner.seen_more([*again, new]) == 0 and len(port.sent) == 2
+    port.t = stamp + rest.planned.plan.duration + 1.0
+    runner.tick()
+    runner.on_result(rest, 'succeeded', 0, '')
+    picked = [s for s in port.statuses if s.get('apple_state') == 'picked']
+    assert sorted(s['apple'] for s in picked) == [0, 1, 2]
+    assert np.allclose(next([s['x'], s['y'], s['z']] for s in picked if s['apple'] == 2), [0.65, 0.0, 0.55])
+    assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['picked'] == 3
+
+
+def test_only_a_harvest_of_the_apples_seen_takes_in_apples_seen_later(port):
+    runner = GoalRunner(port)
+    R = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
+    apple = np.block([[R, np.array([[0.7], [0.15], [0.6]])], [np.zeros((1, 3)), np.ones((1, 1))]])
+    runner.take(Goal(Kind.HARVEST, 'given', Target(Kind.HARVEST, (apple, apple @ _shift([0, 0.15, 0]))), 0.0))
+    accept(runner, port)
+    assert runner.seen_more([apple @ _shift([0, -0.15, -0.05])]) == 0 and len(port.sent) == 1
+
+
+def test_an_apple_over_the_box_is_never_taken_in(port):
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port)
+    port.t = flight.start + 0.5 * flight.planned.harvest.apples[0].end
+    over = apples[0].copy()
+    over[:3, 3] = np.asarray(port.planner.pick.box_position) + [0.0, 0.0, 0.05]
+    assert runner.seen_more([over]) == 0 and len(port.sent) == 1
+
+
+def test_an_apple_seen_too_late_is_said_not_taken_in(port):
+    """An apple seen after the last one is in hand is not taken in: said, with why, on the harvest's status."""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port, ys=(0.15,))
+    port.t = flight.start + 0.5 * flight.planned.harvest.apples[0].end
+    runner._harvest_rest = lambda *a, **k: None                       # the last apple is in hand
+    far = apples[0] @ _shift([0, 0.3, 0])
+    assert runner.seen_more([far]) == 0 and not port.canceled
+    assert [s['apple'] for s in port.statuses if s.get('apple_state') == 'skipped'] == [1]
+
+
+def test_a_rest_that_only_took_in_apples_seen_and_cannot_be_planned_leaves_the_harvest_running(port):
+    """(A rest planned around a changed world that cannot be planned stops the harvest instead: it would hit what
+    changed.)"""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port)
+    port.t = flight.start + 0.5 * flight.planned.harvest.apples[0].end
+    unreachable = apples[0].copy()
+    unreachable[:3, 3] = [3.0, 0.0, 0.5]                              # far beyond the arm's reach
+    planner, refuse = port.planner.plan, []
+
+    def fails(*a, **k):
+        refuse.append(1)
+        raise ValueError('no apple can be picked')
+    port.planner.plan = fails
+    assert runner.seen_more([unreachable]) == 1 and refuse
+    assert not port.canceled and port.states('h')[-1] == 'executing'
+    assert 'not replanned' in port.statuses[-1]['text']
+    port.planner.plan = planner
+
+
+def _shift(xyz):
+    T = np.eye(4)
+    T[:3, 3] = xyz
+    return T

@@ -198,3 +198,23 @@ def test_the_rest_of_a_harvest_planned_again_keeps_each_apples_index_in_the_goal
     assert sorted(int(i) for i in ends['picked_apples'].split()) == list(range(5))
     assert ends['harvest_time'] == pytest.approx(splice + rest.last.plan.duration - 100.0)
     assert len(carried.newly_picked(1e9)) == 3
+
+
+def test_new_apples_are_those_no_harvest_knows_away_from_the_box():
+    from picking_core.harvest import BOX_CLEAR, KNOWN_APPLE, new_apples
+
+    def at(*p):
+        T = np.eye(4)
+        T[:3, 3] = p
+        return T
+    known = np.array([[0.7, 0.1, 0.6], [0.7, 0.3, 0.6]])
+    box = np.array([0.0, -0.5, 0.3])
+    seen = [at(0.7, 0.1 + 0.8 * KNOWN_APPLE, 0.6),                     # a known apple, seen a little off
+            at(0.7, 0.1 + 1.2 * KNOWN_APPLE, 0.6),                     # a new one between the two
+            at(0.7, 0.1 + 1.2 * KNOWN_APPLE + 0.01, 0.6),              # the same new one, seen twice
+            at(*(box + [0.0, 0.0, 0.9 * BOX_CLEAR])),                  # one over the box: let go of
+            at(0.55, -0.2, 0.8)]                                        # a new one
+    new = new_apples(seen, known, box)
+    assert [tuple(np.round(T[:3, 3], 3)) for T in new] == [(0.7, 0.1 + round(1.2 * KNOWN_APPLE, 3), 0.6),
+                                                            (0.55, -0.2, 0.8)]
+    assert new_apples([], known, box) == [] and len(new_apples(seen[-1:], np.empty((0, 3)), box)) == 1

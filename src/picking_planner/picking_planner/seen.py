@@ -1,7 +1,8 @@
 """The apples the camera sees, for the planner: its detections (vision_msgs/Detection3DArray on ``detections``)
 placed in the arm's base through /tf and fused by picking_core.fruit_map into confirmed targets; a
 ``harvest_seen`` message (std_msgs/Header, its stamp the goal's id) harvests those, grasped as a tree's
-apples are (along +x). Detections it cannot use are counted with the reason on /diagnostics."""
+apples are (along +x), and the apples the camera shows while it runs join it. Detections it cannot use are counted
+with the reason on /diagnostics."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from picking_common.vision import read_detections
 from picking_core.fruit_map import FruitMap
 from picking_core.goals.lifecycle import Ending, Outcome
 from picking_core.goals.requests import Goal, Kind, Target
+from picking_core.harvest import SETTLED
 from vision_msgs.msg import Detection3DArray
 
 from .inputs import goal_id
@@ -51,6 +53,7 @@ class SeenApples:
         covariances = R @ covariances @ R.T
         self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters, scores)
         self.runner.seen(placed, diameters, stamp_key(msg.header.stamp))
+        self.runner.seen_more(self.map.grasp_poses(settled=SETTLED))
 
     def _refuse(self, why, n=1):
         self.refused[why] += n
@@ -66,7 +69,7 @@ class SeenApples:
             self.runner.end(goal, Ending(Outcome.REFUSED, 'no apples seen: the fruit map has no confirmed apple (are '
                                                           'detections coming?)'))
             return
-        goal.target = Target(Kind.HARVEST, tuple(poses))
+        goal.target = Target(Kind.HARVEST, tuple(poses), seen=True)
         self.node.get_logger().info(f'harvest of the {len(poses)} apples seen (goal {goal.key})')
         self.runner.take(goal)
 

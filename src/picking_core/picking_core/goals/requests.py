@@ -28,7 +28,8 @@ class Target:
     poses, the apple's grasp pose (one) or a harvest's apples; ``method`` a pose or path goal's own method
     ('': the planner's); ``indices`` a harvest's apples' indices in its goal; ``follow`` a pick's apple in motion
     (a :class:`~picking_core.moving_pick.Follow`: the pick is aimed where it will be), or None; ``back_off`` why a
-    pick gives up (its plan goes home without closing), or ''."""
+    pick gives up (its plan goes home without closing), or ''; ``seen``: a harvest of the apples the camera sees
+    (those it shows later join it)."""
 
     kind: Kind
     poses: tuple
@@ -36,6 +37,7 @@ class Target:
     indices: tuple = ()
     follow: object = field(default=None, compare=False)
     back_off: str = ''
+    seen: bool = False
 
     def __post_init__(self):
         if not self.poses:
@@ -66,13 +68,15 @@ class Target:
 
 @dataclass(frozen=True)
 class Rest:
-    """A harvest goal's apples not started, planned again around a changed world: ``why`` in words, ``at`` the
-    schedule time the apple in hand is in the box (the rest takes over there) and ``plan_time`` that time in the
-    running plan's own time (s from its start)."""
+    """A harvest goal's apples not started, planned again (around a changed world, or with apples seen since):
+    ``why`` in words, ``at`` the schedule time the apple in hand is in the box (the rest takes over there) and
+    ``plan_time`` that time in the running plan's own time (s from its start); ``keep``: a rest that cannot be
+    planned leaves the running plan on (it hits nothing; else it is stopped)."""
 
     why: str
     at: float
     plan_time: float
+    keep: bool = False
 
 
 @dataclass

@@ -25,7 +25,7 @@ from typing import Protocol
 import numpy as np
 
 from ..collision import STEP as COLLISION_STEP
-from ..harvest import HarvestRun, carrying, empty_below
+from ..harvest import HarvestRun, carrying, empty_below, new_apples
 from ..kinematics.paths import check_joint_limits
 from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
 from ..sway import Sightings, SwayFit
@@ -685,15 +685,25 @@ class GoalRunner:
         old = getattr(flight, 'replaces', None)
         if old is not None and old.handle is not None:
             self.lifecycle.flights[flight.goal.key] = old
-            self._stop(old, f'{flight.goal.rest.why}, and the rest could not be planned again around it ({why})')
+            self._rest_failed(flight.goal, old, why)
             return
         self.end(flight.goal, Ending(Outcome.REFUSED, why))
+
+    def _rest_failed(self, goal, running, why):
+        """The rest of harvest ``goal`` could not be planned or run (``why``): the ``running`` plan is stopped, unless
+        the rest only took in apples seen since (:class:`Rest` ``keep``): then it runs on as planned."""
+        if not goal.rest.keep:
+            self._stop(running, f'{goal.rest.why}, and the rest could not be planned again around it ({why})')
+            return
+        words = f'{goal.rest.why}, but they could not be planned in ({why}): the harvest runs on as planned'
+        self.port.log('WARN', f'harvest goal {goal.key}: {words}')
+        self._answer(goal, 'WARN', f'harvest goal not replanned: {words}', state='executing')
 
     def refuse(self, goal, why, code=0):
         """``goal`` cannot be planned or sent: refused with ``why`` (the rest of a harvest: see :meth:`_not_run`)."""
         running = self.lifecycle.flights.get(goal.key)
         if goal.rest is not None and running is not None and running.handle is not None:
-            self._stop(running, f'{goal.rest.why}, and the rest could not be planned again around it ({why})')
+            self._rest_failed(goal, running, why)
             return
         if goal.target is not None and goal.target.back_off:
             self.end(goal, Ending(Outcome.ABORTED, f'{goal.target.back_off}, and it could not back off home: {why}'))
@@ -757,7 +767,7 @@ class GoalRunner:
             if contact is None:
                 continue
             changed = f'the world changed while it ran: {contact} (t from the change)'
-            again = self._harvest_rest(flight, now, contact, changed)
+            again = self._harvest_rest(flight, now, changed, before=now + contact.time)
             if again is None:
                 self._stop(flight, changed)
                 continue
@@ -767,20 +777,59 @@ class GoalRunner:
             self._answer(flight.goal, 'WARN', f'harvest goal replanned: {words}', state='replanned')
             self._handle(again)
 
-    def _harvest_rest(self, flight, now, contact, changed):
-        """The goal of a running harvest, its apples not started by the end of the apple in hand, to be planned
-        again around the changed world (None: not a harvest, the contact comes sooner, or no apple is left)."""
+    def _harvest_rest(self, flight, now, why, before=math.inf, more=(), keep=False):
+        """The goal of a running harvest, its apples not started by the end of the apple in hand and the apples
+        ``more`` (``(index, pose)`` pairs), to be planned again (``why``, in words; ``keep`` as :class:`Rest` takes
+        it). None: not a harvest, the rest would take over at or after ``before`` (a schedule time: what it is
+        planned around comes sooner), no apple is left, or the last apple is in hand already."""
         run = self.harvests.get(flight.goal.key)
         if flight.goal.kind != Kind.HARVEST or run is None or run.start is None:
             return None
         at = run.after_apple_in_hand(now + self.timing.lead + 1.5 * self.timing.expected('harvest'))
-        left = [a.index for a in run.plan.apples if run.start + a.start >= at - 1e-9]
-        if now + contact.time <= at or not left:
+        left = [a.index for a in run.plan.apples if run.start + a.start >= at - 1e-9] + [i for i, _ in more]
+        in_hand = next((a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6), None)
+        if before <= at or not left or in_hand is None:
             return None
-        in_hand = next(a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6)
-        poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses))
-        target = Target(Kind.HARVEST, tuple(poses[i] for i in left), indices=tuple(left))
-        return flight.goal.again(target=target, rest=Rest(changed, at, in_hand), came=self.port.wall())
+        poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses)) | dict(more)
+        target = replace(flight.goal.target, poses=tuple(poses[i] for i in left), indices=tuple(left))
+        return flight.goal.again(target=target, rest=Rest(why, at, in_hand, keep), came=self.port.wall())
+
+    # -- apples seen as a harvest runs -------------------------------------------------------------
+    def seen_more(self, poses):
+        """``poses`` (4x4 each, the arm's base): the apples the camera sees now, settled where they hang. Those a
+        running harvest of the apples seen does not know (:func:`~picking_core.harvest.new_apples`: an apple the
+        arm hid at home, one behind an apple just picked) join the apples it has not started, planned again with
+        them from the box after the apple in hand, as the same goal (the new apples numbered on from its own). An
+        apple seen too late for that (the last one is in hand) is said, not taken. Returns how many were taken."""
+        taken, now = 0, self.schedule_now()
+        box = self.port.goal_planner().pick.box_position
+        for flight in list(self.lifecycle.flights.values()):
+            goal = flight.goal
+            if goal.kind != Kind.HARVEST or not goal.target.seen or flight.handle is None or flight.cancel or \
+                    flight.stopped or (self.waiting.goal is not None and self.waiting.goal.key == goal.key):
+                continue
+            places = self._places.setdefault(goal.key, {})
+            new = new_apples(poses, list(places.values()), box)
+            if not new:
+                continue
+            first = max(places, default=-1) + 1
+            more = list(enumerate(new, start=first))
+            # Known from now on, planned in or not: an apple is taken in once.
+            places.update((i, tuple(float(v) for v in T[:3, 3])) for i, T in more)
+            names = ' '.join(str(i) for i, _ in more)
+            why = f'{len(more)} more apple{"s" if len(more) > 1 else ""} seen ({names})'
+            again = self._harvest_rest(flight, now, why, more=more, keep=True)
+            if again is None:
+                for i, _ in more:
+                    self._apple(goal, i, 'skipped', 'seen after the harvest\'s last apple was in hand: not taken in '
+                                                    '(harvest the apples seen again for it)')
+                continue
+            self.port.log('INFO', f'harvest goal {goal.key}: {why}: the apples not started are planned again with '
+                                  'them, from the box after the apple in hand')
+            self._answer(goal, 'OK', f'harvest goal replanned: {why}, taken in', state='replanned')
+            self._handle(again)
+            taken += len(more)
+        return taken
 
     def _stop(self, flight, why):
         """Stop a running plan at the controller (it brakes to rest): its goal ends aborted, ``why``."""
