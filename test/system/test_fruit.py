@@ -100,6 +100,32 @@ def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path)
         assert 'apples seen' in stack.planner.output()
 
 
+def test_harvest_seen_takes_in_an_apple_the_arm_hid_from_the_camera_at_home(tmp_path):
+    """Apple 2 of this tree is behind the arm at home: the harvest of the apples seen starts with two, the camera sees
+    the third once the arm is away, and the same goal takes it in; all three end in the box by the simulator's
+    count, each claimed once."""
+    import subprocess
+    with running_stack('/fruit4', tmp_path, sim_args=('-p', 'tree:=synthetic 3 5')) as (stack, client):
+        events = []
+        client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
+        time.sleep(2.0)                                   # the camera's frames confirm the apples it sees
+        mark = client.mark()
+        done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', '120', '--ros-args', '-r',
+                               '__ns:=/fruit4'], capture_output=True, text=True, timeout=180)
+        assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
+        statuses = client.planner_status[mark['planner']:]
+        said = [status_values(m) for _, m in statuses]
+        assert 'harvest of the 2 apples seen' in stack.planner.output(), stack.planner.output()
+        replanned = [m.message for _, m in statuses if status_values(m).get('state') == 'replanned']
+        assert len(replanned) == 1 and '1 more apple seen (2)' in replanned[0], [m.message for _, m in statuses]
+        client.wait_for(lambda: events and int(status_values(events[-1])['in_the_box']) == 3, 5.0,
+                        f'3 apples in the box by the simulator\'s count: {[e.message for e in events]}')
+        picked = [v['apple'] for v in said if v.get('apple_state') == 'picked']
+        assert sorted(picked) == ['0', '1', '2'], said
+        end = next(v for v in reversed(said) if v.get('kind') == 'harvest' and v.get('state') == 'succeeded')
+        assert end['picked'] == '3', end
+
+
 def test_bad_detections_are_counted_with_their_reason_and_harvest_seen_without_apples_is_refused(tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
     from std_msgs.msg import Header

@@ -17,6 +17,7 @@ a score below ``min_score``, a centre inside a branch.
 
 from __future__ import annotations
 
+import collections
 import itertools
 from collections import Counter
 from dataclasses import dataclass, field
@@ -26,7 +27,15 @@ from scipy.spatial.transform import Rotation
 
 from .harvest import SIDEWAYS
 from .kinematics.capsules import point_segment_distances
-from .sway import SwayFit
+from .sway import SwayFit, SwaySettings
+
+
+#: m: the farthest an apple hanging still is seen from where it is lately (a camera's 3 mm noise, four deviations).
+STILL = 0.012
+#: s: a track last seen this long before the newest frame is seen lately (a few frames at a camera's 30 Hz).
+LATELY = 0.1
+#: The share of a camera's frames a settled apple was seen in.
+SEEN_MOST = 0.8
 
 
 @dataclass(frozen=True)
@@ -49,8 +58,7 @@ class MapSettings:
 @dataclass
 class Track:
     """An apple seen: ``id``, its position estimate ``x`` (3,) and covariance ``P`` (3, 3) (base frame, m: where
-    it hangs), its diameter (m), ``hits``, when first and last seen (s), ``origin`` (3,) m where it was first seen,
-    and ``motion``, how it moves."""
+    it hangs), its diameter (m), ``hits``, when first and last seen (s), and ``motion``, how it moves."""
 
     id: int
     x: np.ndarray
@@ -60,18 +68,15 @@ class Track:
     first: float
     last: float
     confirmed: bool = False
-    origin: np.ndarray | None = None
     motion: SwayFit = field(default_factory=SwayFit)
 
-    def __post_init__(self):
-        if self.origin is None:
-            self.origin = np.array(self.x, float)
-
-    def settled(self, t, within):
-        """Whether it has been seen for ``t`` s or more, its estimate still within ``within`` m of where it was first
-        seen: an apple hanging on the tree (one the arm carries past, or holds over the box, is seen at one place
-        for less)."""
-        return self.last - self.first >= t and float(np.linalg.norm(self.x - self.origin)) <= within
+    def settled(self, t, within, frames):
+        """Whether it has been seen for ``t`` s or more, in nearly all of the ``frames`` the camera sent in the last
+        ``t`` s, its detections then within ``within`` m of their mean: an apple hanging still (one the arm carries
+        past, holds over the box or knocked swinging on its stem is not; nor is a track that took now and then a
+        detection of another apple passing by)."""
+        n, spread = self.motion.recent(self.last - t)
+        return self.last - self.first >= t and n >= SEEN_MOST * frames and spread <= within
 
 
 class FruitMap:
@@ -86,6 +91,7 @@ class FruitMap:
         self.frames = self.detections = 0
         self._ids = itertools.count(1)
         self._t = None
+        self._stamps = collections.deque()     # the stamps of the frames of the last window (SwaySettings.window)
 
     def update(self, t, positions, covariances, diameters=None, scores=None):
         """One frame at ``t`` (s): ``positions`` (N, 3) and ``covariances`` (N, 3, 3), base frame; returns the
@@ -100,6 +106,9 @@ class FruitMap:
         self.detections += n
         refused = Counter()
         self._predict(t)
+        self._stamps.append(t)
+        while self._stamps[0] < self._t - SwaySettings.window:
+            self._stamps.popleft()
         if n > s.max_per_frame:
             refused[f'a frame of more than {s.max_per_frame} detections (a flood): the frame ignored'] += n
             self.refused.update(refused)
@@ -120,8 +129,13 @@ class FruitMap:
         return refused
 
     def targets(self, settled=0.0):
-        """The confirmed tracks, oldest first; with ``settled`` s, only those :meth:`Track.settled` that long."""
-        return [k for k in self.tracks if k.confirmed and (settled <= 0.0 or k.settled(settled, self.settings.gate))]
+        """The confirmed tracks, oldest first; with ``settled`` s, only those :meth:`Track.settled` that long and
+        seen in the newest frames (one hidden since may have moved: knocked, picked)."""
+        if settled <= 0.0:
+            return [k for k in self.tracks if k.confirmed]
+        frames = sum(1 for t in self._stamps if t >= self._t - settled)
+        return [k for k in self.tracks
+                if k.confirmed and self._t - k.last <= LATELY and k.settled(settled, STILL, frames)]
 
     def grasp_poses(self, rpy=SIDEWAYS, settled=0.0):
         """The confirmed apples (``settled`` as :meth:`targets` takes it) as a harvest's grasp poses (4x4, base

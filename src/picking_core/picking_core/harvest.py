@@ -330,7 +330,7 @@ class Harvest:
 KNOWN_APPLE = 0.05
 #: s an apple must have been seen at one place before a running harvest takes it in (FruitMap.targets: an apple
 #: the arm carries past, or holds over the box, is not).
-SETTLED = 0.5
+SETTLED = 1.0
 #: m: an apple seen this near the box's drop point is one the arm has let go of, never one to pick.
 BOX_CLEAR = 0.15
 

@@ -135,6 +135,13 @@ class SwayFit:
         """The newest detection applied (3,), m, or None before any."""
         return self._seen[-1][1] if self._seen else None
 
+    def recent(self, since):
+        """``(n, spread)``: how many detections are stamped at ``since`` s or later, and the farthest one lies from
+        their mean, m (0 with none): how often the apple was seen lately and how far it moved."""
+        recent = np.array([z for t, z, _ in self._seen if t >= since]).reshape(-1, 3)
+        spread = float(np.max(np.linalg.norm(recent - recent.mean(axis=0), axis=1))) if len(recent) else 0.0
+        return len(recent), spread
+
     def fit(self):
         """The :class:`Fit` of the detections in the window, or None before any."""
         if self._fit is None and self._seen:

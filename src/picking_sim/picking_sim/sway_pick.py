@@ -75,7 +75,7 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
     dt = 1.0 / (rate * SUBSTEPS)
     for k in range(1, 10 ** 7):
         t = k * dt
-        tools, openings, links = samples(_arm(schedule, t, rest)[None])
+        tools, openings, links = samples(arm_at(schedule, t, rest)[None])
         events += world.observe([t], tools, openings, links, samples.radii, samples.names)
         if miss is None and opening is not None and openings[0] < opening and openings[0] <= width:
             miss = float(np.linalg.norm(world.p[index] - tools[0][:3, 3]))
@@ -150,7 +150,7 @@ def _opening_kept(plan, opening):
     return replace(plan, trajectory=trajectory.stack([plan.trajectory, kept]))
 
 
-def _arm(schedule, t, rest):
+def arm_at(schedule, t, rest):
     """The arm's joints and the gripper's opening at ``t`` on ``schedule`` (at rest before it begins)."""
     live = [(s, p) for s, p in schedule if s <= t]
     if not live:
