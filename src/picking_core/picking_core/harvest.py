@@ -328,8 +328,8 @@ class Harvest:
 
 #: m: an apple seen this near one a harvest has (picked, in hand or to come) is that apple.
 KNOWN_APPLE = 0.05
-#: s an apple must have been seen at one place before a running harvest takes it in (FruitMap.targets: an apple
-#: the arm carries past, or holds over the box, is not).
+#: s an apple must have been seen hanging still before a running harvest takes it in (FruitMap.targets: an apple
+#: the arm carries past, holds over the box or knocked swinging is not).
 SETTLED = 1.0
 #: m: an apple seen this near the box's drop point is one the arm has let go of, never one to pick.
 BOX_CLEAR = 0.15
