@@ -27,6 +27,9 @@ SEEDS = range(12)
 #: m/s² of wind push that sways the simulator's apples about ±30 mm at 1 Hz; the sweep's cases.
 PUSH = 2.4
 SWEEP = ((0.5, 2.4, 0.0), (2.0, 2.4, 0.0), (1.0, 1.2, 0.0), (1.0, 3.6, 0.0), (1.0, 2.4, 1.0))
+#: s the camera watches before the pick starts: the wind starts the apple from rest, and its sway is steady (the
+#: start-up transient died away) after about 5 s; the row is about a swaying apple, not one just set swinging.
+WATCH = 5.0
 #: rad: the wind across the approach (the fingers' width, their tightest way) and along it.
 DIRECTIONS = {'across': np.pi / 2, 'along': 0.0}
 
@@ -38,7 +41,7 @@ def _runs(cycle, samples, scene, mode, frequency, push, gusts, direction):
         wind = Wind(amplitude=push, frequency=frequency, direction=direction, gust_rate=gusts, gust_strength=push,
                     seed=seed)
         world = fruit_world(APPLE[None], scene, seed=seed, wind=wind)
-        out.append(pick_swaying(cycle, samples, world, 0, rotation, mode, seed=seed))
+        out.append(pick_swaying(cycle, samples, world, 0, rotation, mode, watch=WATCH, seed=seed))
         sway.append(_amplitude(frequency, push, gusts, direction, seed, scene))
     return out, float(np.median(sway))
 

@@ -88,13 +88,14 @@ class Aim:
     cov: np.ndarray
 
 
-def aim(plan_to, predict, rotation, width, at=None, slip=SLIP):
+def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None):
     """The pick of an apple ``width`` m wide aimed where it will be: ``plan_to(T, approach_time)`` plans the cycle to
     grasp pose ``T`` with the move to P1 lasting at least ``approach_time`` s (None: as quick as it can);
     ``predict(s)`` is ``(mean, cov)`` of the apple's centre ``s`` s into the plan; ``rotation`` (3, 3) the grasp's;
-    ``at`` s into the plan, the closing instant to keep (the last aim's; None: the soonest). None when no plan
-    closes within ``slip`` s after ``at`` (the aim holds: the running plan is kept). Raises what ``plan_to``
-    raises."""
+    ``at`` s into the plan, the closing instant to keep (the last aim's; None: the soonest); ``ride(plan, motion,
+    closes)`` (:meth:`~picking_core.pick_cycle.PickCycle.ride`), when given, makes the aimed plan's straight
+    approach follow the predicted motion. None when no plan closes within ``slip`` s after ``at`` (the aim holds:
+    the running plan is kept). Raises what ``plan_to`` raises."""
     soonest = at is None
     if soonest:
         at = closing_time(plan_to(grasp_pose(rotation, predict(0.0)[0]), None), width)
@@ -111,6 +112,8 @@ def aim(plan_to, predict, rotation, width, at=None, slip=SLIP):
             return None
         at = closes                                 # a little late: aimed again at that instant
     mean, cov = predict(closes)                     # where the apple will be when these fingers close
+    if ride is not None:
+        plan = ride(plan, lambda s: predict(s)[0], closes)
     return Aim(plan, T, closes, np.asarray(mean, float), np.asarray(cov, float))
 
 
@@ -154,12 +157,12 @@ def holds_off(a, holding=False, begins=None):
     return (holding or begins <= DECIDE) and not sure(a)
 
 
-def decide(plan_to, predict, rotation, width, at=None, holding=False):
+def decide(plan_to, predict, rotation, width, at=None, holding=False, ride=None):
     """A pick's next plan as :func:`aim` makes it (same arguments; ``holding`` as :func:`holds_off` takes it):
     ``(aim, holds)``, the aim and whether the pick goes to the stand-off instead; None when the running plan keeps
     its aim. When no new plan keeps the closing instant, the running plan closes by the prediction all the same: the
     soonest aim from here says whether it is still sure enough to close on (else the pick holds off)."""
-    aimed = aim(plan_to, predict, rotation, width, at)
+    aimed = aim(plan_to, predict, rotation, width, at, ride=ride)
     if aimed is not None:
         return aimed, holds_off(aimed, holding)
     soonest = aim(plan_to, predict, rotation, width)

@@ -19,7 +19,7 @@ so grasp and release reach every subscriber of ``joint_states`` with their times
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -44,6 +44,13 @@ LIFT_METHODS = ('line', 'arc')
 #: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
 BLEND_SPEEDS = (0.0, 0.3, 0.6, 0.9)
 TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
+#: s before the straight approach the tool begins to take on the apple's motion (gently: a line to the apple is
+#: timed to the joints' limits, and has no room for more).
+RIDE_RAMP = 0.5
+#: Fraction of the planner's speed the moves of a pick that rides its apple (:meth:`PickCycle.plan` ``rides``)
+#: are planned at, the approach, the line to the apple and the lift: room in the joints' limits for its motion.
+RIDE_SPEED = 0.85
+RIDDEN = ('P1 approach', 'P2 to the apple', 'P3 lift and detach')
 
 
 @dataclass(frozen=True)
@@ -208,6 +215,11 @@ class PickSettings:
         return self
 
 
+def _smoothstep(x):
+    """0 to 1 as ``x`` goes 0 to 1, its first two derivatives 0 at both ends (the quintic)."""
+    return x ** 3 * (10.0 - 15.0 * x + 6.0 * x ** 2)
+
+
 def _toward(T_from, T_to, distance):
     """The pose ``distance`` m from ``T_from`` on the straight line to ``T_to``, its orientation
     turned in proportion (as a line's slerp)."""
@@ -294,7 +306,7 @@ class PickCycle:
         return {'P1': P1, 'P2': P2, 'P3': P3, 'P4': P4, 'P5': P5}
 
     def plan(self, start, T_apple, gripper_start=None, from_box=False, home_after=True, neighbours=None,
-             approach_time=None, from_here=False):
+             approach_time=None, from_here=False, rides=False):
         """The whole cycle from ``start = (q, qd, qdd)``; a Plan with the gripper as last joint.
 
         A harvest chains cycles (:mod:`picking_core.harvest`): ``from_box`` starts at rest in the
@@ -310,15 +322,17 @@ class PickCycle:
         other apples on the tree) are passed slowly: a joint move that would pass one fast goes around them.
         ``approach_time`` s: the least the move to P1 may last (a pick timed to close on a moving apple when it
         gets there, :mod:`picking_core.moving_pick`; a detour is not stretched). ``from_here``: the approach
-        leaves ``start`` even at rest, not by way of home (a pick that waited at its stand-off).
+        leaves ``start`` even at rest, not by way of home (a pick that waited at its stand-off). ``rides``: the
+        approach and its line are planned at :data:`RIDE_SPEED`, room for :meth:`ride` on a moving apple.
         """
         return approaches.clear_cycle(
             self, lambda T, detours=None, branch=None, slow=None: self._plan(
-                start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time, from_here),
+                start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time, from_here,
+                rides),
             T_apple, neighbours)
 
     def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None,
-              approach_time=None, from_here=False):
+              approach_time=None, from_here=False, rides=False):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
@@ -328,6 +342,9 @@ class PickCycle:
         if self.s.blend and (self.planner.settings.cartesian_profile != 'optimal' or self.planner.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
                              'entered and left at speed)')
+        if rides:
+            # (Timed to the limits, the approach and its line would leave no room for the apple's motion on top.)
+            slow = {**{label: approaches.Slowed(RIDE_SPEED) for label in RIDDEN}, **(slow or {})}
         d = self._knots(T_apple, branch, detours or {})
         d.slow = dict(slow or {})
         d.approach_time = approach_time
@@ -433,7 +450,7 @@ class PickCycle:
 
     def _reach_apple(self, d, rise_line):
         """P1 approach and P2, the straight line to the apple (after the line out of the box, from the box)."""
-        pl, arm = self.planner, self.arm
+        pl, arm = self._mover(d, 'P2 to the apple'), self.arm
 
         def to_apple(speed, rest):
             return pl.line(d.q1, arm.fk(d.q1), d.poses['P2'], (speed, 0.0), rest)
@@ -465,13 +482,14 @@ class PickCycle:
         """P3, the lift that detaches the apple, flowing into the transfer to P4, and P5, the line into the box."""
         s, pl, arm = self.s, self.planner, self.arm
         d.q_top = None if s.blend_radius == 0.0 else self._top(d.q_apple, d.poses)  # the corner at P3
+        lifter = self._mover(d, 'P3 lift and detach')
         # The lift flows into the transfer (stopping at P4 for this choice; without blends there is no
         # choice to make, and the transfer is planned once, below) ...
         if s.blend:
-            _, (lift, path) = self._quickest(self._speeds, lambda f, rest: self._lift(d.q_apple, d.poses, f, rest),
+            _, (lift, path) = self._quickest(self._speeds, lambda f, rest: self._lift(d.q_apple, d.poses, f, rest, lifter),
                                              lambda ln: self._transfer(d, ln))
         else:
-            lift, path = self._lift(d.q_apple, d.poses, 0.0)
+            lift, path = self._lift(d.q_apple, d.poses, 0.0, None, lifter)
         d.add('P3 lift and detach', s.lift_method, lift, path)
         # ... and the transfer into the line into the box.
         moved, (line, path) = self._quickest(
@@ -521,6 +539,61 @@ class PickCycle:
         for a closing it is sure of. The plan has no gripper column (the fingers keep their opening); around what
         the checker sees, else Blocked naming the contact."""
         return around.plan_pose(self.planner, self.checker, start, self.key_poses(T_apple)['P1'])
+
+    def ride(self, plan, motion, closes):
+        """``plan`` (a pick cycle's, the gripper its last joint) with the tool riding its apple's predicted motion:
+        ``motion(s)`` is the apple's centre (3,) ``s`` s into the plan, ``closes`` s into it the fingers meet the
+        apple. Over the straight approach the tool takes on the apple's motion relative to where it will be at the
+        closing (smoothly, from none at the line's start to all of it where the grasp begins), so the apple lies in
+        the tool's frame as a still one does, and after the closing it comes back onto the plan by the lift's
+        end. The plan as it was when it has no straight approach, the apple does not move, or the
+        ride would break a joint limit (its ``extra['rides']`` says which it got)."""
+        start, grasp = plan.extra.get('grasp_start'), plan.extra.get('grasp_end')
+        line, lift = (next((s for s in plan.segments if s.label == label), None) for label in RIDDEN[1:])
+        unchanged = replace(plan, extra={**plan.extra, 'rides': False})
+        if line is None or lift is None or not line.start < start <= closes <= grasp:
+            return unchanged
+        stop = lift.start + lift.duration
+        begin = max(line.start - RIDE_RAMP, 0.0)
+        n = max(int(np.ceil((stop - begin) / self.planner.settings.sample_period)), 4) + 1
+        t = np.linspace(begin, stop, n)
+        # The share of the apple's motion the tool takes on: none at first, all of it from the grasp's start to the
+        # closing; the apple then held, the tool comes to rest back on the plan by the lift's end.
+        before = t < closes
+        w = _smoothstep(np.clip((t[before] - begin) / (start - begin), 0.0, 1.0))
+        at = np.asarray(motion(closes), float)
+        offset = np.zeros((n, 3))
+        offset[before] = w[:, None] * (np.array([motion(s) for s in t[before]]) - at)
+        h, zero = 1e-3, np.zeros(3)
+        v = (np.asarray(motion(closes + h)) - np.asarray(motion(closes - h))) / (2 * h)
+        a = (np.asarray(motion(closes + h)) - 2 * at + np.asarray(motion(closes - h))) / h ** 2
+        back = trajectory.hermite_coeffs(zero, v, a, zero, zero, zero, stop - closes)     # (3, 6)
+        offset[~before] = ((t[~before] - closes)[:, None] ** np.arange(6)) @ back.T
+        if np.abs(offset).max() < 1e-6:
+            return unchanged
+        dof = self.arm.dof
+        q = plan.trajectory.sample(t)[0]
+        poses = self.arm.fk(q[:, :dof])
+        poses[:, :3, 3] += offset
+        q_ride, ok, _ = self.arm.ik_batch(poses, q[:, :dof])
+        if not ok.all() or np.abs(q_ride - q[:, :dof]).max() > self.planner.settings.max_joint_step:
+            return unchanged
+        delta = np.zeros_like(q)
+        delta[1:-1, :dof] = (q_ride - q[:, :dof])[1:-1]           # (the ends are on the plan)
+        parts = [trajectory.quintic_via(delta, np.diff(t))]
+        if begin > 0.0:
+            parts.insert(0, trajectory.hold(0.0 * delta[0], begin))
+        if stop < plan.duration:
+            parts.append(trajectory.hold(0.0 * delta[0], plan.duration - stop))
+        both = trajectory.stack([plan.trajectory, trajectory.concatenate(parts)])
+        k = q.shape[1]
+        ridden = trajectory.PiecewisePolynomial(both.breaks, both.coeffs[:, :, :k] + both.coeffs[:, :, k:])
+        try:
+            self.planner.check_limits(trajectory.PiecewisePolynomial(ridden.breaks, ridden.coeffs[:, :, :dof]),
+                                      'riding the apple')
+        except Unreachable:
+            return unchanged
+        return replace(plan, trajectory=ridden, extra={**plan.extra, 'rides': True})
 
     def back_off(self, start):
         """From ``start`` (q, qd, qdd; braking first if it moves) home to P0 at rest: a pick that gives up. The plan
@@ -601,12 +674,13 @@ class PickCycle:
                 best = (move, line)
         return best
 
-    def _lift(self, q_apple, poses, speed, rest=None):
+    def _lift(self, q_apple, poses, speed, rest=None, planner=None):
         """The lift from the apple to P3 (a line, or an arc that also pulls back), leaving P3
-        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest).
+        at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest), planned by ``planner`` (None:
+        the cycle's).
 
         With a blend radius the lift ends that far before its end (along the line or the arc)."""
-        pl, r = self.planner, self.s.blend_radius
+        pl, r = planner or self.planner, self.s.blend_radius
         T2, mid, end = self._lift_poses(q_apple, poses)
         if mid is None:
             return pl.line(q_apple, T2, end if r == 0.0 else _toward(end, T2, r), (0.0, speed), rest)

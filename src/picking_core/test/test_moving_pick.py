@@ -7,6 +7,7 @@ from conftest import shipped_harvest
 from scipy.spatial.transform import Rotation
 
 from picking_core.harvest import SIDEWAYS
+from picking_core.trajectory import PiecewisePolynomial
 from picking_core.moving_pick import (
     AGREE,
     DECIDE,
@@ -111,3 +112,54 @@ def test_only_an_aim_that_decides_the_closing_must_be_sure_of_it(cycle):
     assert not holds_off(Aim(at_stand_off, T, 1.0, APPLE, certain), holding=True)
     by_home = cycle.plan((P1, 0 * P1, 0 * P1), T)                   # a pick from rest anywhere else goes home first
     assert by_home.segments[0].label == 'P0 home' and final_approach(by_home) > final_approach(at_stand_off) + 0.5
+
+
+def _sway(s):
+    """A sway of ±20 mm at 1 Hz along y about the apple (its centre, s s into the plan)."""
+    return APPLE + [0.0, 0.02 * np.sin(2 * np.pi * s), 0.0]
+
+
+def test_riding_the_apple_keeps_it_where_a_still_one_lies_in_the_tool_frame(cycle):
+    """From the grasp's start to the closing the ridden tool moves with the swaying apple: the apple lies where a
+    still one at the closing place does (the plan as planned), within a millimetre; outside the ride the plan is the
+    one planned, and the ridden plan keeps every joint limit."""
+    planned = cycle.plan(_home(cycle), _pose(_sway(1.2)), rides=True)
+    closes = closing_time(planned, WIDTH)
+    ridden = cycle.ride(planned, _sway, closes)
+    assert ridden.extra['rides'] and not planned.extra.get('rides')
+    dof = cycle.arm.dof
+    cycle.planner.check_limits(PiecewisePolynomial(ridden.trajectory.breaks, ridden.trajectory.coeffs[:, :, :dof]),
+                               'ridden')
+    t = np.linspace(planned.extra['grasp_start'], closes, 20)
+    tool = cycle.arm.fk(ridden.trajectory.sample(t)[0][:, :dof])[:, :3, 3]
+    still = cycle.arm.fk(planned.trajectory.sample(t)[0][:, :dof])[:, :3, 3]
+    apple = np.array([_sway(s) for s in t])
+    assert np.abs((apple - tool) - (_sway(closes) - still)).max() < 1e-3
+    # The tool did move with the apple on its way in (the sway covers centimetres there) ...
+    line = np.linspace(final_approach(planned), closes, 40)
+    moved = [cycle.arm.fk(p.trajectory.sample(line)[0][:, :dof])[:, :3, 3] for p in (ridden, planned)]
+    assert np.abs(moved[0] - moved[1]).max() > 0.01
+    # ... and is on the plan again before the ride and after the lift.
+    lift = next(s for s in planned.segments if s.label == 'P3 lift and detach')
+    outside = np.concatenate([np.linspace(0.0, final_approach(planned) - 0.6, 20),
+                              np.linspace(lift.start + lift.duration, planned.duration, 20)])
+    assert np.allclose(ridden.trajectory.sample(outside)[0], planned.trajectory.sample(outside)[0], atol=1e-9)
+
+
+def test_a_still_apple_or_a_plan_with_no_room_is_not_ridden(cycle):
+    planned = cycle.plan(_home(cycle), _pose(APPLE), rides=True)
+    closes = closing_time(planned, WIDTH)
+    still = cycle.ride(planned, lambda s: APPLE, closes)
+    assert not still.extra['rides'] and still.trajectory is planned.trajectory
+    # Timed to the joints' limits (not planned to ride), a sway on top would break one: the plan is kept.
+    full = cycle.plan(_home(cycle), _pose(_sway(1.2)))
+    kept = cycle.ride(full, _sway, closing_time(full, WIDTH))
+    assert not kept.extra['rides'] and kept.trajectory is full.trajectory
+
+
+def test_an_aimed_pick_rides_its_apple_when_asked(cycle):
+    def swaying(s):
+        return _sway(s), np.eye(3) * 1e-6
+    a = aim(lambda T, least: cycle.plan(_home(cycle), T, approach_time=least, rides=True), swaying, ROTATION,
+            WIDTH, ride=cycle.ride)
+    assert a.plan.extra['rides'] and closing_time(a.plan, WIDTH) == pytest.approx(a.at)

@@ -57,7 +57,7 @@ class SwayPick:
 
 
 def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latency=0.05, noise=0.003, watch=2.5,
-                 lead=0.05, seed=0):
+                 lead=0.05, seed=0, riding=True):
     """Pick apple ``index`` of ``world`` with ``cycle`` (a PickCycle; ``samples``: the world's view of the arm,
     :class:`~picking_sim.orchard.ArmSamples`) grasping along ``rotation`` (3, 3), aimed as ``mode`` says (see the
     module), after the camera watched it for ``watch`` s; returns a :class:`SwayPick`."""
@@ -107,7 +107,7 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
             at = None if last_aim is None else last_aim.at - (splice - begun)
 
         def plan_to(T, approach_time=None, state=state, gripper=gripper, here=hold_since is not None):
-            return cycle.plan(state, T, gripper, approach_time=approach_time, from_here=here)
+            return cycle.plan(state, T, gripper, approach_time=approach_time, from_here=here, rides=riding)
         if mode == 'predicted':
             def predict(s, at=splice):
                 return fit.predict(at + s)
@@ -115,7 +115,8 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
             def predict(s, z=latest):
                 return z, R
         if mode == 'predicted':
-            decided = decide(plan_to, predict, rotation, width, at, hold_since is not None)
+            decided = decide(plan_to, predict, rotation, width, at, hold_since is not None,
+                             cycle.ride if riding else None)
         else:
             aimed = aim(plan_to, predict, rotation, width, at)
             decided = None if aimed is None else (aimed, False)

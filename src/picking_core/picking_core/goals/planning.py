@@ -79,10 +79,10 @@ class GoalPlanner:
 
         def plan_to(T, least):
             return cycle.plan(start.state, T, gripper_start=start.gripper, approach_time=least,
-                              from_here=follow.holding)
+                              from_here=follow.holding, rides=True)
         at = None if follow.closes_at is None else follow.closes_at - t0
         decided = decide(plan_to, lambda s: follow.predict(t0 + s), target.pose[:3, :3], follow.width, at,
-                         follow.holding)
+                         follow.holding, cycle.ride)
         if decided is None:
             raise AimHolds('no new plan closes the fingers on time: the running plan keeps its aim')
         aimed, holds = decided

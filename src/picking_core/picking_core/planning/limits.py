@@ -119,6 +119,11 @@ class Limits:
             t = np.where(h > 0.0, t + a / self._jmax, 0.0)
         return t.max(axis=2)
 
+    def check_limits(self, traj, label):
+        """Raise Unreachable, its message led by ``label``, where ``traj`` (the arm's joints first) breaks a
+        position, velocity, acceleration or (with ``limit_jerk``) jerk limit of the arm."""
+        self._check(traj, label)
+
     def _check(self, traj, label):
         t = _check_times(traj)
         q, qd, qdd = traj.sample(t)
