@@ -34,14 +34,14 @@ WATCH = 5.0
 DIRECTIONS = {'across': np.pi / 2, 'along': 0.0}
 
 
-def _runs(cycle, samples, scene, mode, frequency, push, gusts, direction):
+def _runs(cycle, samples, scene, mode, frequency, push, gusts, direction, riding=True):
     rotation = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
     out, sway = [], []
     for seed in SEEDS:
         wind = Wind(amplitude=push, frequency=frequency, direction=direction, gust_rate=gusts, gust_strength=push,
                     seed=seed)
         world = fruit_world(APPLE[None], scene, seed=seed, wind=wind)
-        out.append(pick_swaying(cycle, samples, world, 0, rotation, mode, watch=WATCH, seed=seed))
+        out.append(pick_swaying(cycle, samples, world, 0, rotation, mode, watch=WATCH, seed=seed, riding=riding))
         sway.append(_amplitude(frequency, push, gusts, direction, seed, scene))
     return out, float(np.median(sway))
 
@@ -83,7 +83,8 @@ def swaying_apples():
     cycle = shipped_harvest().cycle
     samples = ArmSamples(cycle.arm, ArmCapsules.from_arm(cycle.arm), [*cycle.arm.joint_names, 'gripper_joint'])
     scene = Scene.from_yaml(scene_path('workcell'))
-    still = _figures(_runs(cycle, samples, scene, 'predicted', 1.0, 0.0, 0.0, 0.0)[0])
+    # (A still apple's pick is not aimed, so not slowed to ride it: the plan it gets today.)
+    still = _figures(_runs(cycle, samples, scene, 'predicted', 1.0, 0.0, 0.0, 0.0, riding=False)[0])
     rows = []
     for where, direction in DIRECTIONS.items():
         for mode in MODES:

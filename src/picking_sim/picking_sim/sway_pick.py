@@ -60,7 +60,8 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
                  lead=0.05, seed=0, riding=True):
     """Pick apple ``index`` of ``world`` with ``cycle`` (a PickCycle; ``samples``: the world's view of the arm,
     :class:`~picking_sim.orchard.ArmSamples`) grasping along ``rotation`` (3, 3), aimed as ``mode`` says (see the
-    module), after the camera watched it for ``watch`` s; returns a :class:`SwayPick`."""
+    module), after the camera watched it for ``watch`` s; ``riding``: aimed plans ride the apple
+    (:meth:`~picking_core.pick_cycle.PickCycle.ride`) as the planner's do; returns a :class:`SwayPick`."""
     if mode not in MODES:
         raise ValueError(f'unknown mode {mode!r}: one of {", ".join(MODES)}')
     rng = np.random.default_rng(seed)
