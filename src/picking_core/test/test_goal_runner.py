@@ -553,9 +553,9 @@ def test_places_of_a_picks_apple_passed_over_in_a_burst_still_tell_how_it_sways(
 def test_a_camera_out_for_half_a_second_leaves_the_pick_aimed(port):
     """No place for 0.5 s mid-approach, once the pick is aimed at the sway: it runs on as aimed and closes where the
     apple will be; the places after the gap find its straight approach begun (the aim holds)."""
-    _, aimed = _streamed(port, 50, missing=range(27, 42))
+    _, aimed = _streamed(port, 60, missing=range(27, 42))
     assert aimed and _closing_miss(port, aimed[-1]) < 0.004
-    assert 'straight approach' in [s for s in port.statuses if s.get('goal') == 'q50'][-1]['text']
+    assert 'straight approach' in [s for s in port.statuses if s.get('goal') == 'q60'][-1]['text']
 
 
 def test_a_picks_places_out_of_order_ahead_of_the_clock_or_jumping_are_refused_with_the_reason(port):
