@@ -18,6 +18,7 @@ a score below ``min_score``, a centre inside a branch.
 from __future__ import annotations
 
 import collections
+import copy
 import itertools
 from collections import Counter
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from .harvest import SIDEWAYS
 from .kinematics.capsules import point_segment_distances
+from .moving_pick import APPLE_WIDTH, Follow
 from .sway import SwayFit, SwaySettings
 
 
@@ -152,6 +154,21 @@ class FruitMap:
         track = next((k for k in self.tracks if k.id == track_id), None)
         return None if track is None else track.motion.predict(t)
 
+    def follow(self, p):
+        """The :class:`~picking_core.moving_pick.Follow` of the confirmed apple hanging nearest ``p`` (3,), m, within
+        ``gate``, if it sways: its motion as fitted now (later detections do not change it) and its width; None for
+        a still apple or none there."""
+        p = np.asarray(p, float)
+        near = [k for k in self.targets() if np.linalg.norm(k.x - p) <= self.settings.gate]
+        if not near:
+            return None
+        track = min(near, key=lambda k: np.linalg.norm(k.x - p))
+        fit = track.motion.fit()
+        if fit is None or fit.frequency <= 0.0:
+            return None
+        motion = copy.deepcopy(track.motion)
+        return Follow(motion.predict, track.diameter if np.isfinite(track.diameter) else APPLE_WIDTH)
+
     def counts(self):
         return {'frames': self.frames, 'detections': self.detections, 'tracks': len(self.tracks),
                 'confirmed': len(self.targets()), 'refused': sum(self.refused.values())}
@@ -170,6 +187,10 @@ class FruitMap:
         if self.tracks and len(z):
             X = np.array([k.x for k in self.tracks])
             dist = np.linalg.norm(z[:, None] - X[None], axis=2)                 # (N, T)
+            # A swaying apple is found where it was lately seen too: a frame on it lies within noise and a sway's
+            # step of the one before, while the centre of a wide sway may lie beyond the gate.
+            newest = np.array([k.motion.newest if t - k.last <= LATELY else k.x for k in self.tracks])
+            dist = np.minimum(dist, np.linalg.norm(z[:, None] - newest[None], axis=2))
             cost = np.where(dist <= s.gate, dist, np.inf)
             used_tracks = set()
             for flat in np.argsort(cost, axis=None):

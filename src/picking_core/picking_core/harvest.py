@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from . import trajectory
 from .collision.fruit import Neighbours
 from .kinematics import Unreachable
+from .moving_pick import aim, closing_margin, sure
 from .planning import Plan
 
 
@@ -226,6 +227,28 @@ class Harvest:
             raise found
         return found
 
+    def _aimed(self, state, T, gripper, chained, on_tree, follow, t, first):
+        """The cycle of a swaying apple (``follow``, a :class:`~picking_core.moving_pick.Follow`; ``t`` the clock time
+        the cycle starts at) from ``state``: aimed where the apple will be when the fingers close and riding it
+        over the straight approach, as a pick of it is (:func:`~picking_core.moving_pick.aim`). The ``first`` cycle
+        of a plan is judged (:func:`~picking_core.moving_pick.sure`: ValueError when its closing would not be, the
+        apple left on the tree, never closed on air); a later one's aim looks a cycle or more further ahead and is
+        for its timing: the rest is aimed again, and judged, before its apple in hand is dropped."""
+        checker, speed = self.cycle.checker, self.cycle.s.apple_pass_speed
+        on_tree = np.asarray(on_tree, float).reshape(-1, 3)
+        neighbours = Neighbours(checker.capsules, on_tree, speed) if checker is not None and speed > 0.0 and \
+            len(on_tree) else None
+
+        def plan_to(T_aim, least):
+            return self.cycle.plan(state, T_aim, gripper, from_box=chained, home_after=False, neighbours=neighbours,
+                                   approach_time=least, rides=True)
+        aimed = aim(plan_to, lambda s: follow.predict(t + s), np.asarray(T, float)[:3, :3], follow.width,
+                    ride=self.cycle.ride)
+        if first and not sure(aimed):
+            raise ValueError(f'its sway is too unsure to close on (the fingers would miss it by '
+                             f'{-closing_margin(aimed) * 1e3:.0f} mm at one deviation): left on the tree')
+        return replace(aimed.plan, extra={**aimed.plan.extra, 'closes_in': aimed.at})
+
     def in_box(self, start):
         """True when ``start = (q, qd, qdd)`` rests with the tool at the box's drop point (a harvest
         replacing another starts there, after the apple in hand is dropped)."""
@@ -276,16 +299,19 @@ class Harvest:
         last = times(q_top, self.home[None])[:, 0]
         return first, between, last
 
-    def plan(self, start, apples, gripper_start=None, ordered=True, indices=None):
+    def plan(self, start, apples, gripper_start=None, ordered=True, indices=None, follows=None, t0=0.0):
         """The harvest of ``apples`` (4x4 grasp poses in the base frame) from ``start = (q, qd, qdd)``;
-        ``indices``: each apple's index in its goal (default: its place in ``apples``).
+        ``indices``: each apple's index in its goal (default: its place in ``apples``). ``follows`` maps the index
+        of a swaying apple to its :class:`~picking_core.moving_pick.Follow` (its ``T`` where it hangs, its
+        prediction on a clock on which the plan starts at ``t0`` s): its cycle is aimed where it will be at the
+        closing and rides it (:meth:`_aimed`); the order is chosen on where the apples hang.
 
         From rest in the box (:meth:`in_box`: a harvest replacing one whose apple in hand has just been
         dropped) the arm rises out of it to the first apple; from anywhere else it goes by way of home.
         ``ordered=False`` keeps the goal's order. Apples out of reach, or whose cycle cannot be
         planned, are skipped with the reason. Raises ValueError when none is left.
         """
-        t0 = time.perf_counter()
+        began = time.perf_counter()
         from_box = self.in_box(start)
         ok, skipped = self.reach(apples, indices)
         q_from = self.home if not from_box else np.asarray(start[0], float)[:self.arm.dof]
@@ -294,7 +320,7 @@ class Harvest:
         else:
             _, _, given = self.order(ok, q_from)
             est = given
-        ordering_s = time.perf_counter() - t0
+        ordering_s = time.perf_counter() - began
         plans, times, state, gripper, chained = [], [], start, gripper_start, from_box
         t = 0.0
         # Every apple of the goal hangs on the tree until its own cycle picks it (those skipped stay).
@@ -302,8 +328,10 @@ class Harvest:
                            (np.asarray(T, float)[:3, 3] for T in apples)))
         for index, T, _, _ in ok:
             others = [c for i, c in on_tree.items() if i != index]
+            follow = (follows or {}).get(index)
             try:
-                p = self._cycle(state, T, gripper, chained, others)
+                p = self._cycle(state, T, gripper, chained, others) if follow is None else \
+                    self._aimed(state, T, gripper, chained, others, follow, t0 + t, not plans)
             except (Unreachable, ValueError) as exc:
                 skipped.append(Skipped(index, str(exc)))
                 continue

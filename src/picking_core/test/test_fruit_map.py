@@ -45,6 +45,25 @@ def test_a_swaying_apple_stays_one_track_placed_where_it_hangs():
     assert np.linalg.norm(np.array([k.x for k in fmap.targets()]) - APPLES, axis=1).max() < 0.01
 
 
+def test_an_apple_swaying_wider_than_the_gate_stays_one_track_and_its_follow_predicts_it():
+    """±50 mm at 1 Hz: beyond the gate from where it hangs, but each frame finds it near where it was lately seen.
+    Its Follow says where it will be a second on (the fit frozen as it was); a still apple has none."""
+    fmap, rng = FruitMap(), np.random.default_rng(2)
+
+    def sway(t):
+        p = APPLES.copy()
+        p[0, 0] += 0.05 * np.sin(2 * np.pi * t)               # the first apple sways, the others hang still
+        return p
+
+    frames(fmap, sway, 3.0, rng)
+    assert len(fmap.tracks) == 3
+    follow = fmap.follow(APPLES[0])
+    assert follow is not None and fmap.follow(APPLES[1]) is None
+    frames(fmap, sway, 3.0, rng)                      # later detections leave the follow as it was
+    mean, cov = follow.predict(3.0 + 1.0)
+    assert np.linalg.norm(mean - sway(4.0)[0]) < 0.006 and np.sqrt(cov.max()) < 0.01
+
+
 def test_an_apple_no_longer_seen_is_forgotten():
     fmap, rng = FruitMap(MapSettings(forget_after=1.0)), np.random.default_rng(2)
     frames(fmap, APPLES, 1.0, rng)

@@ -10,6 +10,11 @@ behind an apple just picked) join the apples it has not started: the rest is pla
 apple in hand (the first that ends ``lead`` s after the frame that showed them: planning) and spliced there. With
 ``follow=False`` the harvest keeps its first plan (what the camera showed at home, and nothing after). The arm
 follows its schedule exactly (the servo's lag is the simulator's, not this playback's).
+
+In the wind (``aim=True``) each apple the fruit map sees swaying is aimed where it will be when the fingers close,
+and ridden (:meth:`Harvest.plan <picking_core.harvest.Harvest.plan>`'s ``follows``): the first plan from the
+fits at home, and ``reaim`` s before each apple in hand is dropped the rest is planned again from the fits then,
+so that every prediction looks only one approach ahead, as the planner does.
 """
 
 from __future__ import annotations
@@ -40,14 +45,17 @@ class SeenHarvest:
     seen: int
     taken_in: int
     skipped: tuple
+    reaimed: int = 0
 
 
-def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3, follow=True, branches=None):
+def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3, follow=True, branches=None,
+                 aim=False, reaim=0.2):
     """Harvest what ``camera`` (a :class:`~picking_core.camera.DepthCamera`) sees of ``world`` with ``harvest`` (a
     :class:`~picking_core.harvest.Harvest`; ``samples`` the world's view of the arm,
     :class:`~picking_sim.orchard.ArmSamples`; ``branches`` ``(ends (M, 2, 3), radii (M,))``, the scene's rods,
-    which hide apples and inside which a detection is refused), stepping the world every ``step`` s; see the
-    module. Returns a :class:`SeenHarvest`; ValueError when the camera saw no apple at home."""
+    which hide apples and inside which a detection is refused), stepping the world every ``step`` s; ``aim`` and
+    ``reaim`` for swaying apples; see the module. Returns a :class:`SeenHarvest`; ValueError when the camera saw
+    no apple at home."""
     ends, radii = branches if branches is not None else (np.empty((0, 2, 3)), np.empty(0))
     fruit_map = FruitMap(branches=(ends, radii) if len(ends) else None)
     home = np.asarray(harvest.home, float)
@@ -56,6 +64,8 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
     pending = collections.deque()                       # (handed over at, stamp, positions, covariances, diameters, scores)
     schedule, places, skipped, runs = [], {}, {}, []    # runs: (start, HarvestPlan) in the order they take over
     seen = taken = 0
+    reaimed = set()                                     # the ends of the apples in hand the rest was aimed again by
+    aimed = set()                                       # the apples planned aimed at their sway
     t_prev, t, end = 0.0, 0.0, np.inf
     while t < end:
         t = t_prev + period
@@ -73,13 +83,23 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
             if not poses:
                 raise ValueError('the camera saw no apple from home')
             seen = len(poses)
-            plan = harvest.plan((home, 0 * home, 0 * home), poses)
             places.update((i, T) for i, T in enumerate(poses))
+            follows = _follows(fruit_map, places, aim)
+            aimed.update(follows)
+            plan = harvest.plan((home, 0 * home, 0 * home), poses, follows=follows, t0=t)
             schedule, runs = [(t, plan.plan)], [(t, plan)]
             skipped.update((s.index, s.reason) for s in plan.skipped)
             end = t + plan.plan.duration
             continue
         if not follow or not schedule:
+            continue
+        again = _reaimed(harvest, runs[-1], t, lead, reaim, places, fruit_map, reaimed, aimed) if aim else None
+        if again is not None:
+            at, plan = again
+            schedule = [(s, p) for s, p in schedule if s < at] + [(at, plan.plan)]
+            runs.append((at, plan))
+            skipped.update((s.index, s.reason) for s in plan.skipped)
+            end = at + plan.plan.duration
             continue
         new = new_apples(fruit_map.grasp_poses(settled=SETTLED), [T[:3, 3] for T in places.values()],
                          harvest.cycle.s.box_position)
@@ -97,7 +117,39 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
         runs.append((at, plan))
         skipped.update((s.index, s.reason) for s in plan.skipped)
         end = at + plan.plan.duration
-    return SeenHarvest(world.counts(), end - schedule[0][0], seen, taken, tuple(sorted(skipped.items())))
+    return SeenHarvest(world.counts(), end - schedule[0][0], seen, taken, tuple(sorted(skipped.items())),
+                       len(reaimed))
+
+
+def _follows(fruit_map, places, aim):
+    """The Follows of the apples of ``places`` (index: pose where it hangs) the map sees swaying now (none without
+    ``aim``)."""
+    if not aim:
+        return {}
+    follows = {i: fruit_map.follow(T[:3, 3]) for i, T in places.items()}
+    return {i: f for i, f in follows.items() if f is not None}
+
+
+def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed, aimed):
+    """``(at, HarvestPlan)``: the rest of ``run`` planned again at ``t`` from the map's fits, when the apple in hand
+    (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways now or was planned aimed (in
+    ``aimed``, which grows); None otherwise. Each apple in hand's end (kept in ``reaimed``) aims the rest once."""
+    start, plan = run
+    k = next((j for j, a in enumerate(plan.apples) if start + a.end >= t + lead), None)
+    if k is None or k + 1 >= len(plan.apples) or start + plan.apples[k].end > t + lead + reaim:
+        return None
+    at = round(start + plan.apples[k].end, 6)
+    following = plan.apples[k + 1].index
+    if at in reaimed or (following not in aimed and fruit_map.follow(places[following][:3, 3]) is None):
+        return None
+    reaimed.add(at)
+    left = [a.index for a in plan.apples[k + 1:]]
+    q = plan.plan.trajectory.sample([plan.apples[k].end])[0][0]
+    arm = q[:harvest.arm.dof]
+    follows = _follows(fruit_map, {i: places[i] for i in left}, True)
+    aimed.update(follows)
+    return at, harvest.plan((arm, 0 * arm, 0 * arm), [places[i] for i in left], gripper_start=float(q[-1]),
+                            indices=left, follows=follows, t0=at)
 
 
 def _rest(harvest, run, soonest, places, more):
