@@ -227,13 +227,12 @@ class Harvest:
             raise found
         return found
 
-    def _aimed(self, state, T, gripper, chained, on_tree, follow, t, first):
+    def _aimed(self, state, T, gripper, chained, on_tree, follow, t):
         """The cycle of a swaying apple (``follow``, a :class:`~picking_core.moving_pick.Follow`; ``t`` the clock time
         the cycle starts at) from ``state``: aimed where the apple will be when the fingers close and riding it
-        over the straight approach, as a pick of it is (:func:`~picking_core.moving_pick.aim`). The ``first`` cycle
-        of a plan is judged (:func:`~picking_core.moving_pick.sure`: ValueError when its closing would not be, the
-        apple left on the tree, never closed on air); a later one's aim looks a cycle or more further ahead and is
-        for its timing: the rest is aimed again, and judged, before its apple in hand is dropped."""
+        over the straight approach, as a pick of it is (:func:`~picking_core.moving_pick.aim`). ValueError when the
+        closing would not be sure (:func:`~picking_core.moving_pick.sure`): the apple is left on the tree, never
+        closed on air."""
         checker, speed = self.cycle.checker, self.cycle.s.apple_pass_speed
         on_tree = np.asarray(on_tree, float).reshape(-1, 3)
         neighbours = Neighbours(checker.capsules, on_tree, speed) if checker is not None and speed > 0.0 and \
@@ -244,7 +243,7 @@ class Harvest:
                                    approach_time=least, rides=True)
         aimed = aim(plan_to, lambda s: follow.predict(t + s), np.asarray(T, float)[:3, :3], follow.width,
                     ride=self.cycle.ride)
-        if first and not sure(aimed):
+        if not sure(aimed):
             raise ValueError(f'its sway is too unsure to close on (the fingers would miss it by '
                              f'{-closing_margin(aimed) * 1e3:.0f} mm at one deviation): left on the tree')
         return replace(aimed.plan, extra={**aimed.plan.extra, 'closes_in': aimed.at})
@@ -303,8 +302,10 @@ class Harvest:
         """The harvest of ``apples`` (4x4 grasp poses in the base frame) from ``start = (q, qd, qdd)``;
         ``indices``: each apple's index in its goal (default: its place in ``apples``). ``follows`` maps the index
         of a swaying apple to its :class:`~picking_core.moving_pick.Follow` (its ``T`` where it hangs, its
-        prediction on a clock on which the plan starts at ``t0`` s): its cycle is aimed where it will be at the
-        closing and rides it (:meth:`_aimed`); the order is chosen on where the apples hang.
+        prediction on a clock on which the plan starts at ``t0`` s): the plan's first cycle, if its apple sways, is
+        aimed where the apple will be at the closing and rides it (:meth:`_aimed`); a later one is planned where its
+        apple hangs (an aim would look a cycle or more ahead: the rest is aimed again before each apple in hand is
+        dropped). The order is chosen on where the apples hang.
 
         From rest in the box (:meth:`in_box`: a harvest replacing one whose apple in hand has just been
         dropped) the arm rises out of it to the first apple; from anywhere else it goes by way of home.
@@ -328,10 +329,10 @@ class Harvest:
                            (np.asarray(T, float)[:3, 3] for T in apples)))
         for index, T, _, _ in ok:
             others = [c for i, c in on_tree.items() if i != index]
-            follow = (follows or {}).get(index)
+            follow = (follows or {}).get(index) if not plans else None
             try:
                 p = self._cycle(state, T, gripper, chained, others) if follow is None else \
-                    self._aimed(state, T, gripper, chained, others, follow, t0 + t, not plans)
+                    self._aimed(state, T, gripper, chained, others, follow, t0 + t)
             except (Unreachable, ValueError) as exc:
                 skipped.append(Skipped(index, str(exc)))
                 continue

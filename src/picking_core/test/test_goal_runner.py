@@ -15,6 +15,7 @@ from picking_core.goals.runner import STREAM_PAUSE, GoalRunner
 from picking_core.goals.start import Running, Timing, choose_start
 from picking_core.harvest import SIDEWAYS
 from picking_core.kinematics import pose_matrix
+from picking_core.moving_pick import Follow
 from picking_core.pick_cycle import HOME_POSITIONS
 
 DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
@@ -721,6 +722,41 @@ def test_an_apple_seen_while_a_harvest_of_the_apples_seen_runs_joins_it_as_the_s
     assert sorted(s['apple'] for s in picked) == [0, 1, 2]
     assert np.allclose(next([s['x'], s['y'], s['z']] for s in picked if s['apple'] == 2), [0.65, 0.0, 0.55])
     assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['picked'] == 3
+
+
+def test_a_harvest_of_the_apples_seen_is_aimed_again_at_its_next_swaying_apple_before_the_drop(port):
+    """The apple after the one in hand sways (±20 mm at 1 Hz): shortly before the apple in hand is dropped the apples
+    not started are planned again from the box, the swaying one first and aimed where it will be when the fingers
+    close (said on the harvest's status); once for each apple in hand, and not while the drop is far off."""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port)
+    first, second = flight.planned.harvest.apples
+    centre = apples[second.index][:3, 3]
+
+    def sway(t):
+        return centre + [0.0, 0.02 * np.sin(2 * np.pi * t), 0.0]
+    follow = Follow(lambda t: (sway(t), np.eye(3) * 1e-6), 0.07)
+
+    def follow_of(p):
+        return follow if np.linalg.norm(p - centre) < 0.01 else None
+    drop = flight.start + first.end
+    port.t = flight.start + 0.3 * first.end
+    assert runner.reaim(follow_of) == 0 and len(port.sent) == 1
+    while runner.reaim(follow_of) == 0:
+        port.t += 0.02
+        assert port.t < drop, 'not aimed again before the drop'
+    assert runner.reaim(follow_of) == 0 and len(port.sent) == 2
+    assert 'sways: aimed where it will be' in [s for s in port.statuses if s.get('state') == 'replanned'][-1]['text']
+    rest, _, stamp = port.sent[-1]
+    assert stamp == pytest.approx(drop) and second.index in rest.goal.target.follows
+    redone = rest.planned.harvest
+    aimed = redone.apples[0]
+    assert aimed.index == second.index
+    t = np.arange(aimed.start, aimed.held[0], 1e-3)
+    trajectory, dof = rest.planned.plan.trajectory, port.planner.planner.arm.dof
+    closes = t[np.flatnonzero(trajectory.sample(t)[0][:, -1] <= 0.07)[0]]
+    tool = port.planner.planner.arm.fk(trajectory.sample([closes])[0][0, :dof])[:3, 3]
+    assert np.linalg.norm(tool - sway(stamp + closes)) < 0.002
 
 
 def test_only_a_harvest_of_the_apples_seen_takes_in_apples_seen_later(port):

@@ -1,7 +1,8 @@
 """The apples the camera sees, for the planner: its detections (vision_msgs/Detection3DArray on ``detections``)
 placed in the arm's base through /tf and fused by picking_core.fruit_map into confirmed targets; a
 ``harvest_seen`` message (std_msgs/Header, its stamp the goal's id) harvests those, grasped as a tree's
-apples are (along +x), and the apples the camera shows while it runs join it. Detections it cannot use are counted
+apples are (along +x), and the apples the camera shows while it runs join it; a swaying apple is aimed at its
+sway when its turn comes (``GoalRunner.reaim``). Detections it cannot use are counted
 with the reason on /diagnostics."""
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ class SeenApples:
         self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters, scores)
         self.runner.seen(placed, diameters, stamp_key(msg.header.stamp))
         self.runner.seen_more(self.map.grasp_poses(settled=SETTLED))
+        self.runner.reaim(self.map.follow)
 
     def _refuse(self, why, n=1):
         self.refused[why] += n
@@ -69,7 +71,9 @@ class SeenApples:
             self.runner.end(goal, Ending(Outcome.REFUSED, 'no apples seen: the fruit map has no confirmed apple (are '
                                                           'detections coming?)'))
             return
-        goal.target = Target(Kind.HARVEST, tuple(poses), seen=True)
+        follows = {i: self.map.follow(T[:3, 3]) for i, T in enumerate(poses)}
+        goal.target = Target(Kind.HARVEST, tuple(poses), seen=True,
+                             follows={i: f for i, f in follows.items() if f is not None})
         self.node.get_logger().info(f'harvest of the {len(poses)} apples seen (goal {goal.key})')
         self.runner.take(goal)
 

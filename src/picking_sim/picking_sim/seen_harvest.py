@@ -12,9 +12,9 @@ apple in hand (the first that ends ``lead`` s after the frame that showed them: 
 follows its schedule exactly (the servo's lag is the simulator's, not this playback's).
 
 In the wind (``aim=True``) each apple the fruit map sees swaying is aimed where it will be when the fingers close,
-and ridden (:meth:`Harvest.plan <picking_core.harvest.Harvest.plan>`'s ``follows``): the first plan from the
-fits at home, and ``reaim`` s before each apple in hand is dropped the rest is planned again from the fits then,
-so that every prediction looks only one approach ahead, as the planner does.
+and ridden (:meth:`Harvest.plan <picking_core.harvest.Harvest.plan>`'s ``follows``: a plan's first apple): the
+first plan from the fits at home, and ``reaim`` s before each apple in hand is dropped the rest is planned again
+from the fits then, so that every prediction looks only one approach ahead, as the planner does.
 """
 
 from __future__ import annotations
@@ -65,7 +65,6 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
     schedule, places, skipped, runs = [], {}, {}, []    # runs: (start, HarvestPlan) in the order they take over
     seen = taken = 0
     reaimed = set()                                     # the ends of the apples in hand the rest was aimed again by
-    aimed = set()                                       # the apples planned aimed at their sway
     t_prev, t, end = 0.0, 0.0, np.inf
     while t < end:
         t = t_prev + period
@@ -84,16 +83,14 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
                 raise ValueError('the camera saw no apple from home')
             seen = len(poses)
             places.update((i, T) for i, T in enumerate(poses))
-            follows = _follows(fruit_map, places, aim)
-            aimed.update(follows)
-            plan = harvest.plan((home, 0 * home, 0 * home), poses, follows=follows, t0=t)
+            plan = harvest.plan((home, 0 * home, 0 * home), poses, follows=_follows(fruit_map, places, aim), t0=t)
             schedule, runs = [(t, plan.plan)], [(t, plan)]
             skipped.update((s.index, s.reason) for s in plan.skipped)
             end = t + plan.plan.duration
             continue
         if not follow or not schedule:
             continue
-        again = _reaimed(harvest, runs[-1], t, lead, reaim, places, fruit_map, reaimed, aimed) if aim else None
+        again = _reaimed(harvest, runs[-1], t, lead, reaim, places, fruit_map, reaimed) if aim else None
         if again is not None:
             at, plan = again
             schedule = [(s, p) for s, p in schedule if s < at] + [(at, plan.plan)]
@@ -130,24 +127,22 @@ def _follows(fruit_map, places, aim):
     return {i: f for i, f in follows.items() if f is not None}
 
 
-def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed, aimed):
+def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
     """``(at, HarvestPlan)``: the rest of ``run`` planned again at ``t`` from the map's fits, when the apple in hand
-    (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways now or was planned aimed (in
-    ``aimed``, which grows); None otherwise. Each apple in hand's end (kept in ``reaimed``) aims the rest once."""
+    (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways; None otherwise. Each apple in
+    hand's end (kept in ``reaimed``) aims the rest once."""
     start, plan = run
     k = next((j for j, a in enumerate(plan.apples) if start + a.end >= t + lead), None)
     if k is None or k + 1 >= len(plan.apples) or start + plan.apples[k].end > t + lead + reaim:
         return None
     at = round(start + plan.apples[k].end, 6)
-    following = plan.apples[k + 1].index
-    if at in reaimed or (following not in aimed and fruit_map.follow(places[following][:3, 3]) is None):
+    if at in reaimed or fruit_map.follow(places[plan.apples[k + 1].index][:3, 3]) is None:
         return None
     reaimed.add(at)
     left = [a.index for a in plan.apples[k + 1:]]
     q = plan.plan.trajectory.sample([plan.apples[k].end])[0][0]
     arm = q[:harvest.arm.dof]
     follows = _follows(fruit_map, {i: places[i] for i in left}, True)
-    aimed.update(follows)
     return at, harvest.plan((arm, 0 * arm, 0 * arm), [places[i] for i in left], gripper_start=float(q[-1]),
                             indices=left, follows=follows, t0=at)
 

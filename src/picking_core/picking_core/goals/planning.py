@@ -57,7 +57,7 @@ class GoalPlanner:
             planned = Planned(self._cycle(checker).plan(start.state, target.pose, gripper_start=start.gripper))
         else:
             harvest = Harvest(self._cycle(checker)).plan(start.state, list(target.poses), gripper_start=start.gripper,
-                                                          indices=list(target.indices))
+                                                          indices=list(target.indices), follows=target.follows, t0=at)
             planned = Planned(harvest.plan, harvest=harvest)
         regions = tuple(Allowed(np.asarray(T)[:3, 3], self.pick.apple_region) for T in target.apples())
         planned = Planned(planned.plan, regions, planned.harvest)

@@ -29,7 +29,8 @@ class Target:
     ('': the planner's); ``indices`` a harvest's apples' indices in its goal; ``follow`` a pick's apple in motion
     (a :class:`~picking_core.moving_pick.Follow`: the pick is aimed where it will be), or None; ``back_off`` why a
     pick gives up (its plan goes home without closing), or ''; ``seen``: a harvest of the apples the camera sees
-    (those it shows later join it)."""
+    (those it shows later join it); ``follows`` a harvest's swaying apples, index to Follow (its first is aimed at
+    its sway, :meth:`~picking_core.harvest.Harvest.plan`), or None."""
 
     kind: Kind
     poses: tuple
@@ -38,6 +39,7 @@ class Target:
     follow: object = field(default=None, compare=False)
     back_off: str = ''
     seen: bool = False
+    follows: object = field(default=None, compare=False)
 
     def __post_init__(self):
         if not self.poses:

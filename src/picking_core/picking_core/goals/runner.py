@@ -49,6 +49,9 @@ STREAM_NOISE = 0.003
 AHEAD = 0.1
 #: The camera's newest diameters of a pick's apple whose median its fingers are timed to meet.
 WIDTHS = 60
+#: s: a running harvest is aimed again at its next swaying apple once its apple in hand is dropped this soon after
+#: a rest could take over (late enough that the aim looks one approach ahead, early enough to be planned in time).
+REAIM = 0.3
 LEVELS = {Outcome.SUCCEEDED: 'OK', Outcome.SUPERSEDED: 'WARN', Outcome.CANCELED: 'WARN'}
 
 
@@ -104,6 +107,7 @@ class GoalRunner:
         self.running = None              # Running: our newest plan the controller accepted
         self.harvests = {}               # goal key -> HarvestRun of the harvests sent and not ended, oldest first
         self._places = {}                # goal key -> {apple index: (x, y, z)} of a harvest under way
+        self._reaimed = {}               # goal key -> the drops of its apples in hand it was aimed again before
         self.retargets = {'spliced': 0, 'replaced': 0}
         #: Judge each picked or harvested apple by the measured gripper (else it is claimed by the plan's clock).
         self.grasp_check = True
@@ -831,6 +835,42 @@ class GoalRunner:
             taken += len(more)
         return taken
 
+    def reaim(self, follow_of):
+        """Aim a running harvest of the apples seen at its next apple's sway: ``follow_of(p)`` is the
+        :class:`~picking_core.moving_pick.Follow` of the apple hanging at ``p`` (3,), m, if it sways (else None). Once
+        the apple in hand is dropped within :data:`REAIM` s of the soonest a rest could take over, and the apple after
+        it sways, the apples not started are planned again from the box, the first aimed where it will be when the
+        fingers close (its prediction then looks one approach ahead, not a cycle or more); once for each apple in
+        hand. Returns how many harvests were aimed again."""
+        aimed, now = 0, self.schedule_now()
+        for flight in list(self.lifecycle.flights.values()):
+            goal, run = flight.goal, self.harvests.get(flight.goal.key)
+            if goal.kind != Kind.HARVEST or not goal.target.seen or run is None or run.start is None or \
+                    flight.handle is None or flight.cancel or flight.stopped or \
+                    (self.waiting.goal is not None and self.waiting.goal.key == goal.key):
+                continue
+            soonest = now + self.timing.lead + 1.5 * self.timing.expected('harvest')
+            at = run.after_apple_in_hand(soonest)
+            after = [a for a in run.plan.apples if run.start + a.start >= at - 1e-9]
+            done = self._reaimed.setdefault(goal.key, set())
+            if not after or at - soonest > REAIM or round(at, 6) in done:
+                continue
+            poses = dict(zip(goal.target.indices, goal.target.poses))
+            follows = {i: follow_of(np.asarray(poses[a.index])[:3, 3]) for a in after for i in (a.index,)}
+            follows = {i: f for i, f in follows.items() if f is not None}
+            if after[0].index not in follows:
+                continue
+            done.add(round(at, 6))
+            again = self._harvest_rest(flight, now, f'apple {after[0].index} sways: aimed where it will be',
+                                       keep=True)
+            if again is None:
+                continue
+            self._answer(goal, 'OK', f'harvest goal replanned: {again.rest.why}, the apples not started planned '
+                                     'again from the box after the apple in hand', state='replanned')
+            self._handle(again.again(target=replace(again.target, follows=follows)))
+            aimed += 1
+        return aimed
+
     def _stop(self, flight, why):
         """Stop a running plan at the controller (it brakes to rest): its goal ends aborted, ``why``."""
         flight.stopped = f'{why}; the arm braked to rest'
@@ -882,6 +922,7 @@ class GoalRunner:
         run = self.harvests.pop(goal.key, None)
         if run is None or run.start is None:
             self._places.pop(goal.key, None)
+            self._reaimed.pop(goal.key, None)
             return {}
         now = self.schedule_now()
         finished = outcome == Outcome.SUCCEEDED
@@ -894,6 +935,7 @@ class GoalRunner:
                 self._apple(goal, apple.index, 'failed', f'the harvest {outcome.word} during its cycle: '
                                                          f'{ending.message}', started=apple.start)
         self._places.pop(goal.key, None)
+        self._reaimed.pop(goal.key, None)
         values = run.summary(now, finished)
         return dict(values, summary=run.words(now, finished))
 
