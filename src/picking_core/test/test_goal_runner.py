@@ -720,6 +720,7 @@ def test_an_apple_seen_while_a_harvest_of_the_apples_seen_runs_joins_it_as_the_s
     runner.on_result(rest, 'succeeded', 0, '')
     picked = [s for s in port.statuses if s.get('apple_state') == 'picked']
     assert sorted(s['apple'] for s in picked) == [0, 1, 2]
+    assert [s['text'][-8:] for s in picked] == ['(1 of 3)', '(2 of 3)', '(3 of 3)']      # of the goal's apples
     assert np.allclose(next([s['x'], s['y'], s['z']] for s in picked if s['apple'] == 2), [0.65, 0.0, 0.55])
     assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['picked'] == 3
 

@@ -904,7 +904,7 @@ class GoalRunner:
             self._apple(goal, apple.index, 'missed', why, started=apple.start, at=apple.end)
             return
         unmeasured = '' if held else ' by the plan (the gripper\'s opening was not measured)'
-        self._apple(goal, apple.index, 'picked', f'in the box{unmeasured} ({k} of {len(run.plan.apples)})', picked=k,
+        self._apple(goal, apple.index, 'picked', f'in the box{unmeasured} ({k} of {len(run.picked_by(math.inf))})', picked=k,
                     started=apple.start, at=apple.end, verified=held is True)
 
     def _apple(self, goal, index, word, words, **values):
