@@ -195,6 +195,10 @@ def synthetic_tree(n, seed=0, low=(0.55, -0.35, 0.40), high=(0.80, 0.35, 0.85), 
     return list(poses)
 
 
+class Unsure(ValueError):
+    """A swaying apple's closing would not be sure (:func:`~picking_core.moving_pick.sure`)."""
+
+
 class Harvest:
     """Plans a harvest with a :class:`~picking_core.pick_cycle.PickCycle`."""
 
@@ -244,7 +248,7 @@ class Harvest:
         aimed = aim(plan_to, lambda s: follow.predict(t + s), np.asarray(T, float)[:3, :3], follow.width,
                     ride=self.cycle.ride)
         if not sure(aimed):
-            raise ValueError(f'its sway is too unsure to close on (the fingers would miss it by '
+            raise Unsure(f'its sway is too unsure to close on (the fingers would miss it by '
                              f'{-closing_margin(aimed) * 1e3:.0f} mm at one deviation): left on the tree')
         return replace(aimed.plan, extra={**aimed.plan.extra, 'closes_in': aimed.at})
 
@@ -305,7 +309,9 @@ class Harvest:
         prediction on a clock on which the plan starts at ``t0`` s): the plan's first cycle, if its apple sways, is
         aimed where the apple will be at the closing and rides it (:meth:`_aimed`); a later one is planned where its
         apple hangs (an aim would look a cycle or more ahead: the rest is aimed again before each apple in hand is
-        dropped). The order is chosen on where the apples hang.
+        dropped). A first apple whose closing would not be sure is put off to the end of the order (judged again if
+        its turn comes first), and left on the tree when no other apple is left. The order is chosen on where the
+        apples hang.
 
         From rest in the box (:meth:`in_box`: a harvest replacing one whose apple in hand has just been
         dropped) the arm rises out of it to the first apple; from anywhere else it goes by way of home.
@@ -327,12 +333,22 @@ class Harvest:
         # Every apple of the goal hangs on the tree until its own cycle picks it (those skipped stay).
         on_tree = dict(zip(range(len(apples)) if indices is None else indices,
                            (np.asarray(T, float)[:3, 3] for T in apples)))
-        for index, T, _, _ in ok:
+        queue, put_off = list(ok), set()
+        while queue:
+            index, T, q1, q_top = queue.pop(0)
             others = [c for i, c in on_tree.items() if i != index]
             follow = (follows or {}).get(index) if not plans else None
             try:
                 p = self._cycle(state, T, gripper, chained, others) if follow is None else \
                     self._aimed(state, T, gripper, chained, others, follow, t0 + t)
+            except Unsure as exc:
+                if queue and index not in put_off:
+                    # (Its sway may be surer in a later turn: seen longer, no longer behind the arm.)
+                    put_off.add(index)
+                    queue.append((index, T, q1, q_top))
+                else:
+                    skipped.append(Skipped(index, str(exc)))
+                continue
             except (Unreachable, ValueError) as exc:
                 skipped.append(Skipped(index, str(exc)))
                 continue
