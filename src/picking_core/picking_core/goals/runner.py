@@ -17,7 +17,6 @@ from __future__ import annotations
 import collections
 import itertools
 import math
-import time
 import traceback
 from dataclasses import dataclass, field, replace
 from typing import Protocol
@@ -419,7 +418,7 @@ class GoalRunner:
 
     # -- planning and sending ---------------------------------------------------------------------
     def _plan_and_send(self, goal):
-        t0 = time.perf_counter()
+        t0 = self.port.wall()
         try:
             planner = self.port.goal_planner()
             start, planned, planned_at = self._plan(goal, planner)
@@ -442,7 +441,7 @@ class GoalRunner:
             self.refuse(goal, f'planning failed on an internal error ({type(exc).__name__}: {exc}; the '
                               'planner\'s log has the traceback)')
             return
-        took = time.perf_counter() - t0
+        took = self.port.wall() - t0
         start = self._in_time(start, took)
         self.timing.planned(goal.kind.value, took)
         previous = self.lifecycle.flights.get(goal.key)
