@@ -3,6 +3,7 @@ grasped, pulled off, carried and in the box, nothing knocked or bruised; a goal'
 as the measured gripper shows, and not claimed), and the camera's detections, through /tf_static, where the apples
 truly hang."""
 
+import subprocess
 import time
 
 import numpy as np
@@ -83,16 +84,11 @@ def test_a_harvest_puts_every_apple_in_the_box_by_the_simulators_count(tmp_path)
 def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path):
     """`picking-goal harvest --seen`: the planner harvests what its fruit map confirmed from the camera's noisy
     detections (it never reads the truth), and the simulator counts every apple in the box."""
-    import subprocess
     kind, n, seed = TREE
     with running_stack('/fruit2', tmp_path, sim_args=('-p', f'tree:={kind} {n} {seed}')) as (stack, client):
-        events = []
-        client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
-        time.sleep(2.0)                                   # the camera's frames confirm the apples
-        done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', '120', '--ros-args', '-r',
-                               '__ns:=/fruit2'], capture_output=True, text=True, timeout=180)
-        assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
-        assert 'a harvest of the apples seen' in done.stdout and 'succeeded' in done.stdout, done.stdout
+        # (2 s: the camera's frames confirm the apples.)
+        printed, _, _, events = _harvest_seen(client, '/fruit2', look=2.0, timeout=120)
+        assert 'a harvest of the apples seen' in printed and 'succeeded' in printed, printed
         client.wait_for(lambda: events and int(status_values(events[-1])['in_the_box']) == n, 5.0,
                         f'{n} apples in the box by the simulator\'s count: {[e.message for e in events]}')
         last = status_values(events[-1])
@@ -102,22 +98,15 @@ def test_harvest_seen_picks_the_apples_the_camera_reports_into_the_box(tmp_path)
 
 def test_harvest_seen_takes_in_an_apple_the_arm_hid_from_the_camera_at_home(tmp_path):
     """Apple 2 of this tree is behind the arm at home: the harvest of the apples seen starts with two, the camera sees
-    the third once the arm is away, and the same goal takes it in; all three end in the box by the simulator's
-    count, each claimed once."""
-    import subprocess
+    the third once the arm is away, and the same goal takes it in (once); all three end in the box by the simulator's
+    count, each claimed once. (An apple the arm knocked rings on its stem: the harvest may aim it at its sway too.)"""
     with running_stack('/fruit4', tmp_path, sim_args=('-p', 'tree:=synthetic 3 5')) as (stack, client):
-        events = []
-        client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
-        time.sleep(2.0)                                   # the camera's frames confirm the apples it sees
-        mark = client.mark()
-        done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', '120', '--ros-args', '-r',
-                               '__ns:=/fruit4'], capture_output=True, text=True, timeout=180)
-        assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
-        statuses = client.planner_status[mark['planner']:]
-        said = [status_values(m) for _, m in statuses]
+        # (2 s: the camera's frames confirm the apples it sees.)
+        _, statuses, said, events = _harvest_seen(client, '/fruit4', look=2.0, timeout=120)
         assert 'harvest of the 2 apples seen' in stack.planner.output(), stack.planner.output()
-        replanned = [m.message for _, m in statuses if status_values(m).get('state') == 'replanned']
-        assert len(replanned) == 1 and '1 more apple seen (2)' in replanned[0], [m.message for _, m in statuses]
+        taken = [m.message for _, m in statuses if status_values(m).get('state') == 'replanned'
+                 and 'more apple' in m.message]
+        assert len(taken) == 1 and '1 more apple seen (2)' in taken[0], [m.message for _, m in statuses]
         client.wait_for(lambda: events and int(status_values(events[-1])['in_the_box']) == 3, 5.0,
                         f'3 apples in the box by the simulator\'s count: {[e.message for e in events]}')
         picked = [v['apple'] for v in said if v.get('apple_state') == 'picked']
@@ -175,19 +164,14 @@ def test_harvest_seen_in_the_wind_aims_each_swaying_apple_and_the_world_agrees(t
     """`picking-goal harvest --seen` on a tree of four swaying about ±30 mm at 1 Hz across the approach: before each
     apple in hand is dropped the harvest is aimed again at the next one's sway (said as `replanned`), and the
     planner's claims agree with the simulator's count: every apple it calls picked is in the box, a grasp beside an
-    apple is reported missed, none bruised. (How many land in the box is benchmark row 11's.)"""
-    import subprocess
+    apple is reported missed, none bruised. The fingers close on the swaying apples, not where they hang: at least
+    three of the four in the box, the apples' centres at a median of under 6 mm from the grasp point as the fingers
+    took them (where they hang: a sway's width off, and most closings beside the apple). (A re-aim that comes too
+    late on a loaded machine leaves its apple planned where it hangs: one such apple may be missed.)"""
     wind = ('-p', 'wind.amplitude:=2.4', '-p', 'wind.frequency:=1.0', '-p', f'wind.direction:={np.pi / 2}')
     with running_stack('/fruit5', tmp_path, sim_args=('-p', 'tree:=synthetic 4 2', *wind)) as (stack, client):
-        events = []
-        client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
-        time.sleep(5.0)                                   # the wind's sway grows steady; the camera fits it
-        mark = client.mark()
-        done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', '150', '--ros-args', '-r',
-                               '__ns:=/fruit5'], capture_output=True, text=True, timeout=200)
-        assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
-        statuses = client.planner_status[mark['planner']:]
-        said = [status_values(m) for _, m in statuses]
+        # (5 s: the wind's sway grows steady; the camera fits it.)
+        _, statuses, said, events = _harvest_seen(client, '/fruit5', look=5.0, timeout=150)
         aimed = [m.message for _, m in statuses if status_values(m).get('state') == 'replanned'
                  and 'sways: aimed where it will be' in m.message]
         assert len(aimed) >= 2, [m.message for _, m in statuses]
@@ -195,5 +179,22 @@ def test_harvest_seen_in_the_wind_aims_each_swaying_apple_and_the_world_agrees(t
         last = status_values(events[-1])
         picked = [v['apple'] for v in said if v.get('apple_state') == 'picked']
         missed = [v['apple'] for v in said if v.get('apple_state') == 'missed']
-        assert int(last['in_the_box']) == len(picked) >= 2, (last, [m.message for _, m in statuses])
+        assert int(last['in_the_box']) == len(picked) >= 3, (last, [m.message for _, m in statuses])
         assert int(last['missed_grasps']) <= len(missed) and (last['bruised'], last['dropped']) == ('0', '0'), last
+        offsets = [float(v['offset']) for v in map(status_values, events) if v['event'] == 'grasped']
+        assert np.median(offsets) < 0.006, [e.message for e in events]
+
+
+def _harvest_seen(client, namespace, look, timeout):
+    """`picking-goal harvest --seen` in ``namespace``, sent after the camera has watched for ``look`` s, waited for
+    (it must exit 0): what it printed, the planner's statuses since it was sent, their values, and the simulator's
+    fruit events (subscribed before the look)."""
+    events = []
+    client.create_subscription(DiagnosticStatus, 'fruit_events', events.append, BURST)
+    time.sleep(look)
+    mark = client.mark()
+    done = subprocess.run(['picking-goal', 'harvest', '--seen', '--timeout', str(timeout), '--ros-args', '-r',
+                           f'__ns:={namespace}'], capture_output=True, text=True, timeout=timeout + 50)
+    assert done.returncode == 0, '\n'.join((done.stdout, done.stderr))
+    statuses = client.planner_status[mark['planner']:]
+    return done.stdout, statuses, [status_values(m) for _, m in statuses], events

@@ -12,7 +12,6 @@ from collections import Counter
 from std_msgs.msg import Header
 
 from picking_common.status import Level, stamp_key
-from picking_common.tf import stamp_seconds
 from picking_common.topics import BURST
 from picking_common.vision import read_detections
 from picking_core.fruit_map import FruitMap
@@ -52,7 +51,11 @@ class SeenApples:
         R = T[:3, :3]
         placed = positions @ R.T + T[:3, 3]
         covariances = R @ covariances @ R.T
-        self.map.update(stamp_seconds(msg.header.stamp), placed, covariances, diameters, scores)
+        # On the runner's clock (the ROS clock from its origin), as plans are timed: a swaying apple's fit predicts
+        # where it will be when a plan closes the fingers.
+        stamp = msg.header.stamp
+        self.map.update(self.runner.port.seconds(stamp.sec * 1_000_000_000 + stamp.nanosec), placed, covariances,
+                        diameters, scores)
         self.runner.seen(placed, diameters, stamp_key(msg.header.stamp))
         self.runner.seen_more(self.map.grasp_poses(settled=SETTLED))
         self.runner.reaim(self.map.follow)
