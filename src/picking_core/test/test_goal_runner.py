@@ -760,6 +760,54 @@ def test_a_harvest_of_the_apples_seen_is_aimed_again_at_its_next_swaying_apple_b
     assert np.linalg.norm(tool - sway(stamp + closes)) < 0.002
 
 
+def _late(runner, port, rest):
+    """The controller accepts ``rest``'s plan, then aborts it: it starts in the past (its clock just past the start)."""
+    port.t = rest.start + 0.243
+    runner.on_response(rest, True, handle=object())
+    runner.on_result(rest, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.243 s in the past')
+
+
+def test_a_harvests_aim_that_came_too_late_leaves_it_running_as_planned_and_the_next_apple_is_aimed(port):
+    """A re-aim whose plan reached the controller after its start never ran: the plan it was to take over from runs
+    on and is again what the planner plans from, so the apple after the next one is aimed before its turn."""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port, ys=(0.15, 0.3, 0.0))
+    first, second, _ = flight.planned.harvest.apples
+
+    def follow_of(p):
+        return Follow(lambda t: (p + [0.0, 0.02 * np.sin(2 * np.pi * t), 0.0], np.eye(3) * 1e-6), 0.07)
+    port.t = flight.start + 0.3 * first.end
+    while runner.reaim(follow_of) == 0:
+        port.t += 0.02
+    _late(runner, port, port.sent[-1][0])
+    assert len(port.sent) == 2 and runner.running.key == flight.serial and runner.lifecycle.flights['h'] is flight
+    assert 'came too late' in port.statuses[-1]['text'] and 'runs on as planned' in port.statuses[-1]['text']
+    port.t = flight.start + first.end + 0.5
+    while runner.reaim(follow_of) == 0:
+        port.t += 0.02
+        assert port.t < flight.start + second.end, 'not aimed again before the second drop'
+    rest, _, stamp = port.sent[-1]
+    assert stamp == pytest.approx(flight.start + second.end)
+    assert [a.index for a in rest.planned.harvest.apples] == list(rest.goal.target.follows)
+
+
+def test_a_rest_taking_in_an_apple_that_came_too_late_takes_it_in_after_the_next_apple_in_hand(port):
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port, ys=(0.15, 0.3, 0.0))
+    first, second, _ = flight.planned.harvest.apples
+    port.t = flight.start + 0.5 * first.end
+    new = apples[0].copy()
+    new[:3, 3] = [0.65, -0.15, 0.55]
+    assert runner.seen_more([*apples, new]) == 1
+    _late(runner, port, port.sent[-1][0])
+    rest, _, stamp = port.sent[-1]
+    assert len(port.sent) == 3 and rest.goal.attempt == 1 and rest.replaces is flight
+    assert stamp == pytest.approx(flight.start + second.end)
+    assert 3 in [a.index for a in rest.planned.harvest.apples] + [s.index for s in rest.planned.harvest.skipped]
+    assert first.index not in rest.goal.target.indices and second.index not in rest.goal.target.indices
+    assert runner.harvests['h'].before.plan is flight.planned.harvest
+
+
 def test_only_a_harvest_of_the_apples_seen_takes_in_apples_seen_later(port):
     runner = GoalRunner(port)
     R = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()

@@ -87,6 +87,11 @@ class Flight:
     cancel: bool = False          # its client asked to cancel it
     stopped: str = ''             # why the planner stopped it at the controller (the world changed)
     extra: dict = field(default_factory=dict)
+    serial: int = 0               # the planner's count of the plans it sent
+    # The rest of a harvest: the flight whose plan it takes over from, and what the planner knew of the harvest
+    # under way when it was sent (that one's HarvestRun and the controller's Running): theirs again if it never runs.
+    replaces: object = None
+    displaced: tuple = (None, None)
 
     @property
     def duration(self):

@@ -449,6 +449,8 @@ class GoalRunner:
         flight = Flight(goal, planned, start.time or None, names, self.port.wall())
         flight.extra = self._figures(goal, planned, start, took, planner)
         flight.serial, flight.replaces = next(self._serial), replaces
+        if replaces is not None:
+            flight.displaced = (self.harvests.get(goal.key), self.running)
         self.lifecycle.sent(flight)
         if goal.kind == Kind.HARVEST:
             self._harvest_sent(goal, planned, flight)
@@ -671,23 +673,62 @@ class GoalRunner:
         """``flight``'s plan reached the controller too late to run as planned, or was not answered by its start:
         its goal is planned again, further ahead, a bounded number of times."""
         self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent, late=True)
+        if flight.replaces is not None:
+            self._late_rest(flight, ending)
+            return
         if flight.goal.attempt >= LATE_REPLANS:
             self.refuse(flight.goal, f'its plan reached the controller too late {flight.goal.attempt + 1} times '
                                      f'(a stalled or overloaded machine?): {ending.message}', ending.code)
             return
-        if getattr(flight, 'replaces', None) is not None:   # the plan it was to take over from runs on
-            self.lifecycle.flights[flight.goal.key] = flight.replaces
         self.port.log('WARN', f'{flight.goal.kind.value} goal {flight.goal.key}: its plan came too late to run as '
                               f'planned ({ending.message}); planning it again, further ahead')
         self.timing.delay = 0.0
         self._handle(flight.goal.again(attempt=flight.goal.attempt + 1))
 
+    def _late_rest(self, flight, ending):
+        """The rest of a harvest came too late to take over after the apple in hand: the plan it was to take over
+        from runs on, and the rest (with the apples it took in) is planned again to take over after the next apple
+        in hand. A rest that only aimed the next apple at its sway is not: that apple runs as planned, and the one
+        after it is aimed before its turn (:meth:`reaim`)."""
+        self._rest_not_run(flight)
+        goal, old = flight.goal, flight.replaces
+        self.timing.delay = 0.0
+        known = set(old.goal.target.indices)
+        more = [(i, T) for i, T in zip(goal.target.indices, goal.target.poses) if i not in known]
+        if goal.target.follows and not more:
+            self._rest_failed(goal, old, f'its plan came too late ({ending.message})')
+            return
+        again = None if goal.attempt >= LATE_REPLANS else \
+            self._harvest_rest(old, self.schedule_now(), goal.rest.why, more=more, keep=goal.rest.keep)
+        if again is None:
+            for i, _ in more:
+                self._apple(goal, i, 'skipped', 'seen, but the plan that took it in came too late, and no apple in '
+                                                'hand was left to take it in after')
+            self._rest_failed(goal, old, f'its plan came too late ({ending.message}), and no later apple in hand '
+                                         'was left to take over after' if goal.attempt < LATE_REPLANS else
+                              f'its plan reached the controller too late {goal.attempt + 1} times')
+            return
+        self.port.log('WARN', f'harvest goal {goal.key}: the rest\'s plan came too late to run as planned '
+                              f'({ending.message}); planning it again after the next apple in hand')
+        self._handle(again.again(attempt=goal.attempt + 1))
+
+    def _rest_not_run(self, flight):
+        """The rest of a harvest ``flight`` will not run: the plan it was to take over from runs on, and is again
+        what the planner knows runs (the goal's flight, its HarvestRun, the controller's plan)."""
+        run, running = flight.displaced
+        self.lifecycle.flights[flight.goal.key] = flight.replaces
+        if run is not None:
+            run.until = np.inf
+            self.harvests[flight.goal.key] = run
+        if self.running is not None and self.running.key == flight.serial:
+            self.running = running
+
     def _not_run(self, flight, why):
         """``flight``'s plan will not run: its goal is refused; the rest of a harvest planned again stops the plan it
         was to take over from (that one would hit what changed)."""
-        old = getattr(flight, 'replaces', None)
+        old = flight.replaces
         if old is not None and old.handle is not None:
-            self.lifecycle.flights[flight.goal.key] = old
+            self._rest_not_run(flight)
             self._rest_failed(flight.goal, old, why)
             return
         self.end(flight.goal, Ending(Outcome.REFUSED, why))
@@ -794,7 +835,8 @@ class GoalRunner:
         if before <= at or not left or in_hand is None:
             return None
         poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses)) | dict(more)
-        target = replace(flight.goal.target, poses=tuple(poses[i] for i in left), indices=tuple(left))
+        # (Aimed at no sway: fits frozen when the goal came, or its last aim, look too far ahead now; reaim aims.)
+        target = replace(flight.goal.target, poses=tuple(poses[i] for i in left), indices=tuple(left), follows=None)
         return flight.goal.again(target=target, rest=Rest(why, at, in_hand, keep), came=self.port.wall())
 
     # -- apples seen as a harvest runs -------------------------------------------------------------
