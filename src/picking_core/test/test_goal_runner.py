@@ -763,6 +763,7 @@ def test_a_harvest_of_the_apples_seen_is_aimed_again_at_its_next_swaying_apple_b
 def _late(runner, port, rest):
     """The controller accepts ``rest``'s plan, then aborts it: it starts in the past (its clock just past the start)."""
     port.t = rest.start + 0.243
+    runner.tick()                                   # (the apple in hand is in the box by then)
     runner.on_response(rest, True, handle=object())
     runner.on_result(rest, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.243 s in the past')
 
@@ -782,6 +783,8 @@ def test_a_harvests_aim_that_came_too_late_leaves_it_running_as_planned_and_the_
     _late(runner, port, port.sent[-1][0])
     assert len(port.sent) == 2 and runner.running.key == flight.serial and runner.lifecycle.flights['h'] is flight
     assert 'came too late' in port.statuses[-1]['text'] and 'runs on as planned' in port.statuses[-1]['text']
+    runner.tick()
+    assert [s['apple'] for s in port.statuses if s.get('apple_state') == 'picked'] == [first.index]   # said once
     port.t = flight.start + first.end + 0.5
     while runner.reaim(follow_of) == 0:
         port.t += 0.02

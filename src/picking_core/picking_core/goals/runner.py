@@ -718,7 +718,9 @@ class GoalRunner:
         run, running = flight.displaced
         self.lifecycle.flights[flight.goal.key] = flight.replaces
         if run is not None:
-            run.until = np.inf
+            # (The apples the rest's run reported in the box meanwhile are the running plan's: said once.)
+            gone = self.harvests.get(flight.goal.key)
+            run.until, run.reported = np.inf, max(run.reported, gone.reported if gone is not None else 0)
             self.harvests[flight.goal.key] = run
         if self.running is not None and self.running.key == flight.serial:
             self.running = running
