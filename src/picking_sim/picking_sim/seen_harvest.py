@@ -129,8 +129,9 @@ def _follows(fruit_map, places, aim):
 
 def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
     """``(at, HarvestPlan)``: the rest of ``run`` planned again at ``t`` from the map's fits, when the apple in hand
-    (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways; None otherwise. Each apple in
-    hand's end (kept in ``reaimed``) aims the rest once."""
+    (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways; None otherwise, and when no
+    apple of the rest can be planned (the harvest runs on as planned, as the planner's does). Each apple in hand's
+    end (kept in ``reaimed``) aims the rest once."""
     start, plan = run
     k = next((j for j, a in enumerate(plan.apples) if start + a.end >= t + lead), None)
     if k is None or k + 1 >= len(plan.apples) or start + plan.apples[k].end > t + lead + reaim:
@@ -143,8 +144,11 @@ def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
     q = plan.plan.trajectory.sample([plan.apples[k].end])[0][0]
     arm = q[:harvest.arm.dof]
     follows = _follows(fruit_map, {i: places[i] for i in left}, True)
-    return at, harvest.plan((arm, 0 * arm, 0 * arm), [places[i] for i in left], gripper_start=float(q[-1]),
-                            indices=left, follows=follows, t0=at)
+    try:
+        return at, harvest.plan((arm, 0 * arm, 0 * arm), [places[i] for i in left], gripper_start=float(q[-1]),
+                                indices=left, follows=follows, t0=at)
+    except ValueError:
+        return None
 
 
 def _rest(harvest, run, soonest, places, more):
