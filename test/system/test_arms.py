@@ -109,4 +109,7 @@ def test_a_pick_runs_its_cycle_and_comes_home(arm):
         done.result.message
     phases = {f.phase for f in feedback}
     assert any('grasp' in p for p in phases) and any('P0 back home' in p for p in phases), phases
-    assert 0.0 < max(f.tracking_error for f in feedback) < 0.1
+    # The controller's tracking error, as it saw it: reported, and bounded. (A host that stalls the simulator's
+    # servo loop for 0.13 s delays joint_states while this arm's joints move at up to 1.6 rad/s: its path tolerance
+    # of 0.1 rad is excused then, and the feedback shows up to about 0.2 rad.)
+    assert 0.0 < max(f.tracking_error for f in feedback) < 0.3
