@@ -8,11 +8,11 @@ from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
-from rclpy.action import ActionClient
 from rosstack import BURST, Client, ensure_rclpy, goal_result, make_pose, send_goal, stop_all
 from scipy.spatial.transform import Rotation
 
 from picking_bringup import stack as launcher
+from picking_common.actions import ActionClient
 from picking_common.status import stamp_key, status_values
 from picking_core.harvest import synthetic_tree
 from picking_core.kinematics import ArmModel

@@ -12,13 +12,13 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
-from rclpy.action import ActionClient
 from rosstack import RELIABLE, Client, ensure_rclpy, goal_result, make_pose, send_goal
 from scipy.interpolate import BPoly
 from scipy.spatial.transform import Rotation
 from trajectory_msgs.msg import JointTrajectory
 
 from picking_bringup.stack import Stack
+from picking_common.actions import ActionClient
 from picking_common.status import stamp_key, status_values
 from picking_core.analysis import REFERENCE_BOUND
 from picking_core.planning import PATH_METHODS, POSE_METHODS

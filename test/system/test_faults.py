@@ -10,9 +10,9 @@ from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
-from rclpy.action import ActionClient
 from rosstack import GOALS, KILLED, make_pose, reach, running_stack
 
+from picking_common.actions import ActionClient
 from picking_common.status import status_values
 
 pytestmark = pytest.mark.load

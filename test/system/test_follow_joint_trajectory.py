@@ -9,11 +9,12 @@ from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
-from rclpy.action import ActionClient
 from rclpy.duration import Duration as Span
 from rosstack import ARM_JOINTS, HOME, goal_result, largest_step, running_stack
 from rosstack import send_goal as send
 from trajectory_msgs.msg import JointTrajectoryPoint
+
+from picking_common.actions import ActionClient
 
 Result = FollowJointTrajectory.Result
 

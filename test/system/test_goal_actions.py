@@ -5,10 +5,11 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
-from rclpy.action import ActionClient
 from rosstack import goal_result as result
 from rosstack import make_pose, running_stack, settles_at
 from rosstack import send_goal as send
+
+from picking_common.actions import ActionClient
 
 APPLE = [0.55, 0.15, 0.35]
 

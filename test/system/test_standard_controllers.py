@@ -13,13 +13,13 @@ from action_msgs.msg import GoalStatus
 from fake_controllers import GripperActionController, JointTrajectoryController
 from geometry_msgs.msg import PoseArray, PoseStamped
 from picking_interfaces.action import MoveToPose, Pick
-from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rosstack import BURST, Client, ensure_rclpy, goal_result, make_pose, send_goal, stop_all
 from scipy.spatial.transform import Rotation
 
 from picking_bringup.shipped import config_dir
 from picking_bringup.stack import NodeProcess
+from picking_common.actions import ActionClient
 from picking_common.status import stamp_key, status_values
 from picking_core.kinematics import ArmModel
 from picking_description import urdf_path

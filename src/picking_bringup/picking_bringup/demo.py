@@ -37,11 +37,12 @@ def run_ros_part(args, config, out, demo, stack_initial):
     from diagnostic_msgs.msg import DiagnosticStatus
     from nav_msgs.msg import Path as PathMsg
     from picking_interfaces.action import Pick
-    from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
+
+    from picking_common.actions import ActionClient
 
     from .recording import Recorder
 

@@ -41,11 +41,11 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from picking_interfaces.action import FollowPath, MoveToPose, Pick
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError, UnknownROSArgsError
-from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import Header
 
+from picking_common.actions import ActionClient
 from picking_common.status import stamp_key, status_values
 from picking_common.topics import BURST
 from picking_core.methods import PATH_METHODS, POSE_METHODS

@@ -17,12 +17,12 @@ from control_msgs.msg import GripperCommand as GripperTarget
 from control_msgs.msg import JointTrajectoryControllerState
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
-from rclpy.action import ActionClient
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from unique_identifier_msgs.msg import UUID
 
+from picking_common.actions import ActionClient
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
 from picking_common.status import Level, stamp_key, status
