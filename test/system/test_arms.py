@@ -73,7 +73,9 @@ def test_the_tree_is_harvested_into_the_box_by_the_simulators_count(arm):
                             for T in synthetic_tree(n, seed)])
     tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
     key = stamp_key(tree.header.stamp)
+    since = client.mark()
     client.send(client.pub_harvest, tree)
+    client.planner_answer(since, timeout=30.0)   # (sent again while unanswered: see planner_answer)
     said = lambda: [status_values(m) for _, m in client.planner_status if status_values(m).get('goal') == key]  # noqa: E731
     end = client.wait_for(lambda: next((v for v in said() if v.get('state') in (
         'succeeded', 'aborted', 'refused', 'superseded', 'canceled')), None), 180.0, 'the end of the harvest')

@@ -244,6 +244,7 @@ def send_harvest(client, apples):
     key = stamp_key(tree.header.stamp)
     mark = client.mark()
     client.send(harvest, tree)
+    client.planner_answer(mark, timeout=30.0)    # (sent again while unanswered: see planner_answer)
 
     def of_harvest(state=None, apple_state=None):
         return [status_values(m) | {'message': m.message} for m in client.answers(mark)

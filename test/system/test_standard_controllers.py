@@ -115,7 +115,9 @@ def test_a_harvest_picks_every_apple_counted_by_the_gripper(arm):
     tree = PoseArray(poses=[make_pose(a, FACING) for a in apples])
     tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
     key = stamp_key(tree.header.stamp)
+    mark = client.mark()
     client.send(client.pub_harvest, tree)
+    client.planner_answer(mark, timeout=30.0)   # (sent again while unanswered: see planner_answer)
 
     def statuses():
         return [status_values(m) | {'message': m.message} for _, m in client.planner_status
@@ -152,7 +154,9 @@ def test_picking_controller_serves_the_gripper_action_too(tmp_path):
                                 for T in synthetic_tree(n, seed)])
         tree.header.frame_id, tree.header.stamp = 'base_link', client.get_clock().now().to_msg()
         key = stamp_key(tree.header.stamp)
+        since = client.mark()
         client.send(pub, tree)
+        client.planner_answer(since, timeout=30.0)   # (sent again while unanswered)
         said = lambda: [status_values(m) for _, m in client.planner_status if status_values(m).get('goal') == key]  # noqa: E731
         end = client.wait_for(lambda: next((v for v in said() if v.get('state') in (
             'succeeded', 'aborted', 'refused', 'superseded', 'canceled')), None), 120.0, 'the end of the harvest')
