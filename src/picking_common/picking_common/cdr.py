@@ -211,6 +211,40 @@ class TransformWriter:
         return bytes(self._buf)
 
 
+_TRANSFORM = struct.Struct('<7d')
+
+
+def read_transforms(data):
+    """The transforms of a tf2_msgs/TFMessage's CDR bytes (little endian, as taken raw): a list of ``(parent, child,
+    (x, y, z), (qx, qy, qz, qw), stamp)``, the stamp in s, as :meth:`picking_core.frames.TransformBuffer.set_transforms`
+    takes them. ValueError for bytes it cannot read (big endian, truncated, malformed)."""
+    try:
+        if data[:4] != _HEADER:
+            raise ValueError('not little-endian CDR')
+        (count,) = _U32.unpack_from(data, 4)
+        offset, rows = 8, []
+        for _ in range(count):
+            offset = _aligned(offset, 4)
+            sec, nanosec = _STAMP.unpack_from(data, offset)
+            offset, parent = _string(data, offset + 8)
+            offset, child = _string(data, _aligned(offset, 4))
+            offset = _aligned(offset, 8)
+            v = _TRANSFORM.unpack_from(data, offset)
+            offset += 56
+            rows.append((parent, child, v[:3], v[3:], sec + nanosec * 1e-9))
+    except struct.error as exc:
+        raise ValueError(f'malformed TFMessage bytes: {exc}') from None
+    return rows
+
+
+def _string(data, offset):
+    """``(end, text)``: the CDR string at ``offset``."""
+    (size,) = _U32.unpack_from(data, offset)
+    if size == 0 or offset + 4 + size > len(data):
+        raise ValueError('malformed string')
+    return offset + 4 + size, data[offset + 4:offset + 3 + size].decode('utf-8')
+
+
 class _Stamp:
     __slots__ = ('sec', 'nanosec')
 
@@ -365,21 +399,14 @@ def read_joint_trajectory(data):
 
 def _strings(data, offset):
     """``(end, frame_id, names)``: a header's frame id then a sequence of strings, from ``offset``."""
-    (size,) = _U32.unpack_from(data, offset)
-    if size == 0 or offset + 4 + size > len(data):
-        raise ValueError('malformed frame_id')
-    frame_id = data[offset + 4:offset + 3 + size].decode('utf-8')
-    offset = _aligned(offset + 4 + size, 4)
+    offset, frame_id = _string(data, offset)
+    offset = _aligned(offset, 4)
     (count,) = _U32.unpack_from(data, offset)
     offset += 4
     names = []
     for _ in range(count):
-        offset = _aligned(offset, 4)
-        (size,) = _U32.unpack_from(data, offset)
-        if size == 0 or offset + 4 + size > len(data):
-            raise ValueError('malformed name')
-        names.append(data[offset + 4:offset + 3 + size].decode('utf-8'))
-        offset += 4 + size
+        offset, name = _string(data, _aligned(offset, 4))
+        names.append(name)
     return offset, frame_id, tuple(names)
 
 
@@ -412,6 +439,7 @@ def check():
         trajectory = read_joint_trajectory(serialize_message(msg))
         frames = deserialize_message(TransformWriter([('base', 'a'), ('a', 'bc'), ('bc', 'def')]).write(
             1_700_000_000_123_456_789, xyz, quat), TFMessage).transforms
+        rows = read_transforms(serialize_message(TFMessage(transforms=frames)))
     except Exception:  # noqa: BLE001 - any failure to read it back means: do not use it
         return False
     return (trajectory.header.stamp.sec == 1_700_000_000 and trajectory.header.stamp.nanosec == 123_456_789
@@ -429,6 +457,8 @@ def check():
                     and [p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z, p.pose.orientation.w]
                     == list(quat[i]) for i, p in enumerate(tool.poses))
             and [(f.header.frame_id, f.child_frame_id) for f in frames] == [('base', 'a'), ('a', 'bc'), ('bc', 'def')]
+            and rows == [(p, c, tuple(xyz[i]), tuple(quat[i]), 1_700_000_000.123456789)
+                         for i, (p, c) in enumerate([('base', 'a'), ('a', 'bc'), ('bc', 'def')])]
             and all(f.header.stamp.sec == 1_700_000_000 and f.header.stamp.nanosec == 123_456_789
                     and [f.transform.translation.x, f.transform.translation.y, f.transform.translation.z] == list(xyz[i])
                     and [f.transform.rotation.x, f.transform.rotation.y, f.transform.rotation.z, f.transform.rotation.w]

@@ -137,6 +137,19 @@ class Codec:
         (then it takes message classes)."""
         return cdr.JointStateReader().read if self.raw else None
 
+    def read_transforms(self, msg):
+        """The transforms of what a TFMessage subscription delivered (bytes, or a message) as rows of ``(parent,
+        child, (x, y, z), (qx, qy, qz, qw), stamp s)``; bytes our reader refuses are read by the message class."""
+        if isinstance(msg, (bytes, bytearray)):
+            try:
+                return cdr.read_transforms(msg)
+            except ValueError:
+                msg = deserialize_message(bytes(msg), TFMessage)
+        return [(tf.header.frame_id, tf.child_frame_id,
+                 (tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z),
+                 (tf.transform.rotation.x, tf.transform.rotation.y, tf.transform.rotation.z, tf.transform.rotation.w),
+                 seconds(tf.header.stamp)) for tf in msg.transforms]
+
     def read_trajectory(self, msg):
         """A :class:`TrajectoryData` from what a JointTrajectory subscription delivered: bytes
         (read with numpy; points of differing lengths through the message class) or a message."""

@@ -170,3 +170,42 @@ def test_transforms_in_cdr_bytes_read_back_as_the_message_the_classes_build(fram
     for stamp_ns in (1_700_000_000_999_999_999, 42):                # the template is rewritten each time
         xyz, quat = rng.normal(size=(frames, 3)), rng.normal(size=(frames, 4))
         assert deserialize_message(fast.write(stamp_ns, xyz, quat), TFMessage) == classes.write(stamp_ns, xyz, quat)
+
+
+@pytest.mark.parametrize('frames', [0, 1, 2, 8])
+@pytest.mark.parametrize('prefix', ['', 'a/', 'wörld/', 'p' * 7])
+def test_transforms_read_from_cdr_bytes_are_the_messages_transforms(frames, prefix):
+    """What the pip route's TF listener takes /tf with: every transform of a TFMessage the middleware serialised."""
+    from rclpy.serialization import serialize_message
+
+    from picking_common.codec import Codec
+    rng = np.random.default_rng(frames)
+    pairs = [(prefix + 'l' * i, prefix + 'c' * (2 * i + 1)) for i in range(frames)]
+    xyz, quat = rng.normal(size=(frames, 3)), rng.normal(size=(frames, 4))
+    msg = Codec(raw=False).transform_writer(pairs).write(1_700_000_000_999_999_999, xyz, quat)
+    rows = cdr.read_transforms(serialize_message(msg))
+    assert rows == Codec(raw=False).read_transforms(msg)
+    assert [(p, c) for p, c, *_ in rows] == pairs
+    for (_, _, t, r, stamp), x, q in zip(rows, xyz, quat):
+        assert t == tuple(x) and r == tuple(q) and stamp == pytest.approx(1_700_000_000.999999999, abs=1e-6)
+
+
+@pytest.mark.parametrize('damage', ['truncate', 'big_endian', 'name', 'count'])
+def test_the_transform_reader_refuses_bytes_it_cannot_read(damage):
+    from rclpy.serialization import serialize_message
+
+    from picking_common.codec import Codec
+    msg = Codec(raw=False).transform_writer([('base', 'link1'), ('link1', 'link2')]).write(5, np.ones((2, 3)),
+                                                                                         np.ones((2, 4)))
+    data = serialize_message(msg)
+    if damage == 'truncate':
+        data = data[:-9]
+    elif damage == 'big_endian':
+        data = b'\x00\x00' + data[2:]
+    elif damage == 'name':
+        data = data[:16] + b'\xff\xff\xff\x7f' + data[20:]            # the first parent's length
+    else:
+        data = data[:4] + b'\x03\x00\x00\x00' + data[8:]              # one transform more than the bytes hold
+    with pytest.raises(ValueError):
+        cdr.read_transforms(data)
+    assert len(Codec().read_transforms(serialize_message(msg))) == 2   # (the codec reads what it can)

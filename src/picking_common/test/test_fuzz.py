@@ -18,14 +18,15 @@ WILD = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
 
 
 def _cdr_messages():
-    """Valid JointState and JointTrajectory bytes, to be damaged."""
+    """Valid JointState, JointTrajectory and TFMessage bytes, to be damaged."""
     q = np.arange(6.0).reshape(2, 3)
     return [cdr.JointStateWriter(['a', 'bb', 'ccc'], 'base').write(5, q[0], q[1], q[0]),
-            cdr.joint_trajectory(5, 'f', ['a', 'bb', 'ccc'], np.array([0.1, 0.2]), q, q, q)]
+            cdr.joint_trajectory(5, 'f', ['a', 'bb', 'ccc'], np.array([0.1, 0.2]), q, q, q),
+            cdr.TransformWriter([('a', 'bb'), ('bb', 'ccc')]).write(5, q, np.ones((2, 4)))]
 
 
 @given(st.one_of(st.binary(max_size=300),
-                 st.tuples(st.sampled_from([0, 1]), st.integers(0, 200), st.binary(min_size=1, max_size=8),
+                 st.tuples(st.sampled_from([0, 1, 2]), st.integers(0, 200), st.binary(min_size=1, max_size=8),
                            st.integers(0, 200))))
 def test_cdr_readers_refuse_any_bytes_they_cannot_read(damage):
     """Arbitrary or damaged bytes: the readers the nodes take their messages with give
@@ -37,7 +38,7 @@ def test_cdr_readers_refuse_any_bytes_they_cannot_read(damage):
         data = _cdr_messages()[which]
         datas = [data[:at] + patch + data[at + len(patch):], data[:len(data) - cut]]
     for data in datas:
-        for read in (cdr.JointStateReader().read, cdr.read_joint_trajectory):
+        for read in (cdr.JointStateReader().read, cdr.read_joint_trajectory, cdr.read_transforms):
             try:
                 read(data)
             except ValueError:
