@@ -50,6 +50,8 @@ RIDE_RAMP = 0.5
 #: Fraction of the planner's speed the moves of a pick that rides its apple (:meth:`PickCycle.plan` ``rides``)
 #: are planned at, the approach, the line to the apple and the lift: room in the joints' limits for its motion.
 RIDE_SPEED = 0.85
+#: s: the arm dwells at least this long at the drop point, whatever ``release_lead`` takes of the release.
+MIN_DWELL = 0.02
 RIDDEN = ('P1 approach', 'P2 to the apple', 'P3 lift and detach')
 
 
@@ -128,6 +130,11 @@ class PickSettings:
         A pick of a moving apple whose closing is not sure waits at the stand-off (P1) for a
         calmer moment at most this long from its first hold, s; then it backs off home and
         ends without closing (:mod:`picking_core.moving_pick`).
+    release_lead : float
+        The fingers begin to open this long before the tool reaches P5, on the line into the box,
+        s (at most that line's duration): the arm dwells at P5 only for the rest of the release
+        (at least ``MIN_DWELL``). The apple drops from at most the line's last centimetres; 0: the
+        whole release is a dwell at P5, as in the paper.
     """
 
     home_positions: tuple = HOME_POSITIONS
@@ -152,6 +159,7 @@ class PickSettings:
     apple_region: float = 0.06
     apple_pass_speed: float = 0.0
     hold_time: float = 3.0
+    release_lead: float = 0.0
 
     def validate(self, arm):
         """Check every value against the arm; returns self."""
@@ -207,6 +215,8 @@ class PickSettings:
             raise ValueError(f'approach_cone must be in [0, pi/2] rad, got {self.approach_cone}')
         if not (np.isfinite(self.apple_region) and self.apple_region >= 0.0):
             raise ValueError(f'apple_region must be a finite number >= 0 m, got {self.apple_region}')
+        if not (np.isfinite(self.release_lead) and self.release_lead >= 0.0):
+            raise ValueError(f'release_lead must be a finite number >= 0 s, got {self.release_lead}')
         if not (np.isfinite(self.apple_pass_speed) and self.apple_pass_speed >= 0.0):
             raise ValueError(f'apple_pass_speed must be a finite number >= 0 m/s, got {self.apple_pass_speed}')
         if self.blend and not (self.approach_method == self.transfer_method == 'optimal'):
@@ -362,7 +372,10 @@ class PickCycle:
             self._reach_apple(d, rise_line)
         d.add('grasp', 'dwell', trajectory.hold(d.q_apple, self._gripper_time(self.s.grasp_time)))
         self._carry_to_box(d)
-        d.add('release', 'dwell', trajectory.hold(d.q_box, self._gripper_time(self.s.release_time)))
+        # The fingers begin to open on the last of the line into the box: the arm dwells for the rest.
+        into_box = d.parts[-1][2].duration
+        lead = min(self.s.release_lead, into_box, self._gripper_time(self.s.release_time) - MIN_DWELL)
+        d.add('release', 'dwell', trajectory.hold(d.q_box, self._gripper_time(self.s.release_time) - max(lead, 0.0)))
         if home_after:                        # (else at rest in the box: the next apple's cycle rises out of it)
             for part in self._home_from_box((d.q_box, 0.0 * d.q_box, 0.0 * d.q_box), d.detours.get('P0 back home'),
                                             self._mover(d, 'P0 back home')):
@@ -775,17 +788,22 @@ class PickCycle:
         s = self.s
         g = s.gripper_open if gripper_start is None else float(gripper_start)
         ends, events = [], {}
-        for seg in plan.segments:
-            start = g
+        # What of the opening the release dwell does not take began on the line into the box (release_lead).
+        release = next((seg for seg in plan.segments if seg.label == 'release'), None)
+        lead = 0.0 if release is None else max(self._gripper_time(s.release_time) - release.duration, 0.0)
+        for seg, after in zip(plan.segments, [*plan.segments[1:], None]):
+            start, duration = g, seg.duration - (lead if after is release else 0.0)
             if seg.label == 'grasp':
                 g = s.gripper_closed
                 events['grasp_start'], events['grasp_end'] = seg.start, seg.start + seg.duration
             elif seg.label == 'release':
                 g = s.gripper_open
-                events['release_start'], events['release_end'] = seg.start, seg.start + seg.duration
+                events['release_start'], events['release_end'] = seg.start - lead, seg.start + seg.duration
+                duration += lead
             elif seg.label in ('brake', 'P0 home', 'P1 approach') and seg.duration >= self._gripper_time(0.0):
                 g = s.gripper_open
-            ends.append((start, g, seg.duration))
+            if duration > 1e-9:                     # (a line into the box the opening took whole)
+                ends.append((start, g, duration))
         g0, g1, durations = np.array(ends).T
         coeffs = trajectory.hermite_coeffs(g0, 0.0, 0.0, g1, 0.0, 0.0, durations)
         breaks = np.concatenate(([0.0], np.cumsum(durations)))

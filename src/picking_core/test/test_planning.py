@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from picking_core.kinematics import Unreachable, pose_matrix
-from picking_core.pick_cycle import PickCycle, PickSettings
+from picking_core.pick_cycle import MIN_DWELL, PickCycle, PickSettings
 from picking_core.planning import PATH_METHODS, PLAN_MARGIN, POSE_METHODS, Planner, PlannerSettings
 
 DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
@@ -186,6 +186,29 @@ def test_a_line_slowed_to_the_joint_limits_uses_them_fully_with_one_ik_pass(arm,
     along = (tool - tool[0]) @ (tool[-1] - tool[0]) / np.linalg.norm(tool[-1] - tool[0]) ** 2
     off = tool - tool[0] - along[:, None] * (tool[-1] - tool[0])
     assert np.abs(off).max() < 1e-4                                  # still a straight line
+
+
+def test_a_release_lead_opens_the_fingers_on_the_line_into_the_box_and_shortens_the_dwell(arm, planner):
+    plain = PickCycle(planner, PickSettings().validate(arm)).plan((HOME, Z, Z), APPLE)
+    release = next(s.duration for s in plain.segments if s.label == 'release')
+    for lead in (0.05, 10.0):                   # (10 s: as much as the line and the dwell, less MIN_DWELL, allow)
+        plan = PickCycle(planner, PickSettings(release_lead=lead).validate(arm)).plan((HOME, Z, Z), APPLE)
+        seg = {s.label: s for s in plan.segments}
+        line, dwell = seg['P5 into the box'], seg['release']
+        led = min(lead, line.duration, release - MIN_DWELL)
+        assert dwell.duration == pytest.approx(release - led)
+        assert plan.extra['release_start'] == pytest.approx(line.start + line.duration - led)
+        assert plan.extra['release_end'] == pytest.approx(dwell.start + dwell.duration)
+        assert plan.duration == pytest.approx(plain.duration - led)
+        g = plan.trajectory.sample([plan.extra['release_start'], dwell.start, plan.extra['release_end']])[0][:, 6]
+        s = PickSettings()
+        assert g[0] == pytest.approx(s.gripper_closed) and s.gripper_closed < g[1] < s.gripper_open
+        assert g[2] == pytest.approx(s.gripper_open)
+        assert np.abs(plan.trajectory.sample([dwell.start + dwell.duration / 2])[1][0][:6]).max() < 1e-9
+        _within_limits(arm, plan)
+    for bad in (-0.1, float('nan')):
+        with pytest.raises(ValueError, match='release_lead'):
+            PickSettings(release_lead=bad).validate(arm)
 
 
 def test_table1_cycle_with_an_arc_lift(arm, planner):

@@ -16,7 +16,7 @@ from picking_core.platform import CLEARANCE, SLACK
 #: blended motion a machine should run (config/paper_methods.yaml restores the paper's).
 NODE_DEFAULTS = dict(method='optimal', path_method='optimal', cartesian_profile='optimal', limit_jerk=True,
                      approach_method='optimal', transfer_method='optimal', blend=True, blend_radius=0.02,
-                     box_blend_radius=0.10, speed_scale=1.0, point_period=0.1)
+                     box_blend_radius=0.10, release_lead=0.2, speed_scale=1.0, point_period=0.1)
 
 #: The parameters of the planning core (PlannerSettings) and of the pick cycle (PickSettings).
 SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period', 'point_period', 'cartesian_speed',
@@ -24,7 +24,7 @@ SETTINGS = ('method', 'path_method', 'speed_scale', 'duration', 'sample_period',
 PICK = ('approach_distance', 'lift_height', 'lift_method', 'approach_method', 'grasp_time', 'release_time',
         'box_position', 'box_drop_height', 'home_positions', 'transfer_method', 'transfer_lift',
         'place_orientation_rpy', 'place_yaw_free', 'gripper_open', 'gripper_closed', 'blend', 'blend_radius',
-        'box_blend_radius', 'approach_cone', 'apple_region', 'apple_pass_speed', 'hold_time')
+        'box_blend_radius', 'approach_cone', 'apple_region', 'apple_pass_speed', 'hold_time', 'release_lead')
 #: The world the plans keep clear of (collision.World).
 COLLISION = ('scene_file', 'avoid_collisions', 'collision_clearance')
 
@@ -62,6 +62,9 @@ _TEXT = {
     'approach_method': ('joint-space moves to P0 and P1: lspb, quintic, cubic or optimal', '', None),
     'grasp_time': ('dwell while the gripper closes', 's', (0.001, 60.0)),
     'release_time': ('dwell while the gripper opens', 's', (0.001, 60.0)),
+    'release_lead': ('the fingers begin to open this long before the tool reaches P5, on the line into the box (at '
+                     'most that line): the dwell at P5 is that much shorter; 0: the whole release at P5', 's',
+                     (0.0, 60.0)),
     'box_position': ('P5, the drop point in the fruit box (x, y, z in base_link)', 'm', None),
     'box_drop_height': ('P4 lies this far above P5', 'm', (0.001, 2.0)),
     'home_positions': ("P0, the arm's home, one value per arm joint (the simulator starts there)", 'rad', None),

@@ -1,6 +1,8 @@
 """The simulator's tree and camera clock without ROS: tree descriptions, the arm as the apples see it (fingers at
 the opening), and frames released after their latency in capture order."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -59,3 +61,36 @@ def test_frames_go_out_after_their_latency_in_capture_order():
     assert clock.due(10.04) == [] and clock.wake() == pytest.approx(10.0)   # the next capture is due first
     clock.next_capture = 10.066
     assert clock.wake() == pytest.approx(10.05) and clock.due(10.09) == ['a', 'b']
+
+
+@pytest.mark.parametrize('lead', [0.0, 0.2])
+def test_an_apple_let_go_on_the_line_into_the_box_lands_in_it_unbruised(lead):
+    """The shipped pick cycle played through the fruit world: with the release begun on the line into the box
+    (``release_lead``) the apple still ends in the box, unbruised, and the cycle is shorter by what the dwell lost."""
+    from picking_bringup.shipped import shipped_harvest
+    from picking_core.harvest import SIDEWAYS
+    from picking_core.pick_cycle import PickCycle
+    from scipy.spatial.transform import Rotation
+    shipped = shipped_harvest()
+    cycle = PickCycle(shipped.cycle.planner, replace(shipped.cycle.s, release_lead=lead))
+    apple = np.array([0.70, 0.15, 0.65])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_euler('xyz', SIDEWAYS).as_matrix(), apple
+    home = np.asarray(cycle.s.home_positions, float)
+    plan = cycle.plan((home, 0 * home, 0 * home), T)
+    world = fruit_world(apple[None], Scene.from_yaml(scene_path('workcell')), seed=1)
+    samples = ArmSamples(cycle.arm, ArmCapsules.from_arm(cycle.arm), list(plan.joint_names))
+    t = np.arange(0.0, plan.duration + 1.0, 0.005)
+    tools, openings, links = samples(plan.trajectory.sample(np.minimum(t, plan.duration))[0])
+    events = world.observe(t, tools, openings, links, samples.radii, samples.names)
+    assert world.counts()['in_the_box'] == 1 and not world.bruised[0], [e.words for e in events]
+    released = next(e.t for e in events if e.kind == 'released')
+    seg = {s.label: s for s in plan.segments}
+    into_box = seg['P5 into the box']
+    # The fingers open from release_start, on the line into the box when led, and let go before the arm rises.
+    assert plan.extra['release_start'] == pytest.approx(into_box.start + into_box.duration - min(lead, into_box.duration))
+    assert plan.extra['release_start'] <= released <= seg['release'].start + seg['release'].duration + 0.01
+    if lead:
+        plain = PickCycle(shipped.cycle.planner, replace(shipped.cycle.s, release_lead=0.0)).plan(
+            (home, 0 * home, 0 * home), T)
+        assert plan.duration == pytest.approx(plain.duration - min(lead, into_box.duration), abs=1e-9)
