@@ -274,7 +274,7 @@ def _slowed(cycle, make, label, touch, detours, slow, window, allowed, neighbour
     plan."""
     fraction = 1.0
     while fraction > MIN_SLOW:
-        fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * neighbours.speed / touch.speed)
+        fraction = max(MIN_SLOW, fraction * SLOW_MARGIN * touch.limit / touch.speed)
         slower = {**slow, label: Slowed(fraction, window)}
         try:
             again, again_detours, contact = _detoured(cycle, make, allowed, detours, slower)

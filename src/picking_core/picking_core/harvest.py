@@ -208,17 +208,19 @@ class Harvest:
         self.home = np.asarray(cycle.s.home_positions, float)
         self._cycles = {}   # cycles planned, by their start, apple and gripper: a coordinator plans many harvests
 
-    def _cycle(self, state, T, gripper, chained, on_tree=()):
-        """The cycle of apple ``T`` from ``state``, passing the apples ``on_tree`` (centres, m) no faster than the
-        settings' ``apple_pass_speed`` (with a checker); remembered: the same inputs plan the same cycle."""
+    def _cycle(self, state, T, gripper, chained, on_tree=(), sway=None):
+        """The cycle of apple ``T`` from ``state``, passing the apples ``on_tree`` (centres, m; ``sway`` (n, 2) how
+        each strays, :class:`~picking_core.collision.fruit.Neighbours`) no faster than the settings'
+        ``apple_pass_speed`` (with a checker); remembered: the same inputs plan the same cycle."""
         checker, speed = self.cycle.checker, self.cycle.s.apple_pass_speed
         on_tree = np.asarray(on_tree, float).reshape(-1, 3)
+        sway = np.zeros((len(on_tree), 2)) if sway is None else np.asarray(sway, float).reshape(-1, 2)
         if checker is None or speed <= 0.0:
-            on_tree = on_tree[:0]                 # not looked at: the same cycle whatever hangs beside it
+            on_tree, sway = on_tree[:0], sway[:0]   # not looked at: the same cycle whatever hangs beside it
         key = (tuple(np.asarray(x, float).tobytes() for x in state), np.asarray(T, float).tobytes(), gripper, chained,
-               on_tree.tobytes())
+               on_tree.tobytes(), sway.tobytes())
         if key not in self._cycles:
-            neighbours = Neighbours(checker.capsules, on_tree, speed) if len(on_tree) else None
+            neighbours = Neighbours(checker.capsules, on_tree, speed, sway=sway) if len(on_tree) else None
             try:
                 self._cycles[key] = self.cycle.plan(state, T, gripper, from_box=chained, home_after=False,
                                                     neighbours=neighbours)
@@ -231,7 +233,7 @@ class Harvest:
             raise found
         return found
 
-    def _aimed(self, state, T, gripper, chained, on_tree, follow, t):
+    def _aimed(self, state, T, gripper, chained, on_tree, follow, t, sway=None):
         """The cycle of a swaying apple (``follow``, a :class:`~picking_core.moving_pick.Follow`; ``t`` the clock time
         the cycle starts at) from ``state``: aimed where the apple will be when the fingers close and riding it
         over the straight approach, as a pick of it is (:func:`~picking_core.moving_pick.aim`). ValueError when the
@@ -239,8 +241,8 @@ class Harvest:
         closed on air."""
         checker, speed = self.cycle.checker, self.cycle.s.apple_pass_speed
         on_tree = np.asarray(on_tree, float).reshape(-1, 3)
-        neighbours = Neighbours(checker.capsules, on_tree, speed) if checker is not None and speed > 0.0 and \
-            len(on_tree) else None
+        neighbours = Neighbours(checker.capsules, on_tree, speed, sway=sway) if checker is not None and \
+            speed > 0.0 and len(on_tree) else None
 
         def plan_to(T_aim, least):
             return self.cycle.plan(state, T_aim, gripper, from_box=chained, home_after=False, neighbours=neighbours,
@@ -333,14 +335,17 @@ class Harvest:
         # Every apple of the goal hangs on the tree until its own cycle picks it (those skipped stay).
         on_tree = dict(zip(range(len(apples)) if indices is None else indices,
                            (np.asarray(T, float)[:3, 3] for T in apples)))
+        # How far and how fast each swaying apple strays: the moves keep off it and pass it slower by that much.
+        sway = {i: f.reach(on_tree[i], t0) for i, f in (follows or {}).items() if i in on_tree}
         queue, put_off = list(ok), set()
         while queue:
             index, T, q1, q_top = queue.pop(0)
-            others = [c for i, c in on_tree.items() if i != index]
+            others = [i for i in on_tree if i != index]
+            centres, swaying = [on_tree[i] for i in others], [sway.get(i, (0.0, 0.0)) for i in others]
             follow = (follows or {}).get(index) if not plans else None
             try:
-                p = self._cycle(state, T, gripper, chained, others) if follow is None else \
-                    self._aimed(state, T, gripper, chained, others, follow, t0 + t)
+                p = self._cycle(state, T, gripper, chained, centres, swaying) if follow is None else \
+                    self._aimed(state, T, gripper, chained, centres, follow, t0 + t, swaying)
             except Unsure as exc:
                 if queue and index not in put_off:
                     # (Its sway may be surer in a later turn: seen longer, no longer behind the arm.)

@@ -47,6 +47,8 @@ APPLE_WIDTH = 0.07
 SIGMAS = 1.0
 #: s: an aim whose straight approach to the apple begins within this is the one the fingers close by.
 DECIDE = 0.5
+#: s of a swaying apple's prediction :meth:`Follow.reach` looks at (two periods of a 1 Hz sway).
+SWAY_WATCH = 2.0
 
 
 class AimHolds(ValueError):
@@ -63,6 +65,14 @@ class Follow:
     width: float = APPLE_WIDTH
     closes_at: float | None = None
     holding: bool = False
+
+    def reach(self, centre, t, horizon=SWAY_WATCH):
+        """``(extent, speed)``: how far the apple strays from ``centre`` (3,), m, and its fastest, m/s, over
+        ``horizon`` s from time ``t`` as its prediction says (a steady sway shows both within a period)."""
+        s = np.linspace(t, t + horizon, 201)
+        p = np.array([self.predict(x)[0] for x in s])
+        return (float(np.linalg.norm(p - np.asarray(centre, float), axis=1).max()),
+                float(np.linalg.norm(np.diff(p, axis=0), axis=1).max() / (s[1] - s[0])))
 
 
 def closing_time(plan, width):

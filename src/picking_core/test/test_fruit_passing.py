@@ -7,8 +7,9 @@ from conftest import shipped_harvest, shipped_orchard
 from picking_core import approaches
 from picking_core.approaches import DETOURS, check
 from picking_core.collision import Allowed, CollisionChecker
-from picking_core.collision.fruit import Neighbours
+from picking_core.collision.fruit import MARGIN, RADIUS, Neighbours
 from picking_core.harvest import Harvest
+from picking_core.moving_pick import Follow
 from picking_core.kinematics.capsules import ArmCapsules
 from picking_core.pick_cycle import PickCycle
 
@@ -51,6 +52,31 @@ def test_a_link_touching_an_apple_counts_only_when_it_moves_faster_than_the_brui
     assert list(slow.touched_at(q[:1])) == [0]
 
 
+def test_a_swaying_apple_is_kept_farther_off_and_passed_slower_by_its_own_sway(arm):
+    """A link meets a swaying apple at the sum of their speeds, and as far out as the apple strays."""
+    caps = ArmCapsules.from_arm(arm)
+    q0 = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
+    tool = caps.segments(q0)[0]
+    k = int(np.argmax(np.linalg.norm(tool.mean(axis=1), axis=1)))
+    on_it = tool[k].mean(axis=0)
+    t = np.linspace(0.0, 1.0, 101)
+    q = q0 + np.outer(t, [0.05, 0, 0, 0, 0, 0])
+    speed = Neighbours(caps, [on_it], 1e-6).first_fast_touch(t / 10.0, q).speed     # the link's, where it meets it
+    still = Neighbours(caps, [on_it], 1.1 * speed)
+    swaying = Neighbours(caps, [on_it], 1.1 * speed, sway=[[0.0, 0.3 * speed]])
+    assert still.first_fast_touch(t / 10.0, q) is None
+    touch = swaying.first_fast_touch(t / 10.0, q)
+    assert touch is not None and touch.limit == pytest.approx(0.8 * speed)
+    # Out of reach when still, within it when it strays that far towards the arm.
+    axis = tool[k][1] - tool[k][0]
+    axis = axis / max(np.linalg.norm(axis), 1e-12)
+    across = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    across -= (across @ axis) * axis                                     # square to the capsule's axis
+    off = on_it + (caps.radius[k] + RADIUS + MARGIN + 0.02) * across / np.linalg.norm(across)
+    assert not Neighbours(caps, [off], 1.0).touching(q[:1]).any()
+    assert Neighbours(caps, [off], 1.0, sway=[[0.05, 0.0]]).touching(q[:1]).all()
+
+
 def test_a_joint_move_that_would_pass_a_neighbouring_apple_fast_goes_around_the_apples():
     cycle, orchard = _cycle()
     centres = np.array([T[:3, 3] for T in orchard.apples])
@@ -86,6 +112,33 @@ def test_a_harvest_passes_the_apples_still_on_the_tree_and_forgets_those_in_the_
         fast.append(later.first_fast_touch(t, q[:, :cycle.arm.dof], within))
     assert len(plan.apples) >= 5
     assert sum(f is not None for f in fast) <= 1, fast
+
+
+def test_a_harvest_passes_swaying_apples_slower_by_their_sway():
+    """Every apple sways ±30 mm at 1 Hz across the approach (a Follow each): the joint moves keep the speed past
+    each apple still on the tree below the pass speed less its sway's, counting it as far out as it strays."""
+    cycle, orchard = _cycle()
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    apples = list(orchard.apples)
+
+    def swaying(p):
+        return Follow(lambda t: (p + [0.0, 0.03 * np.sin(2 * np.pi * t), 0.0], np.eye(3) * 1e-8))
+    follows = {i: swaying(T[:3, 3]) for i, T in enumerate(apples)}
+    plan = Harvest(cycle).plan((home, z, z), apples, follows=follows, t0=100.0)
+    centres = {i: T[:3, 3] for i, T in enumerate(apples)}
+    fast = []
+    t, q = cycle.checker.samples(plan.plan.trajectory)
+    for a in plan.apples:
+        centres.pop(a.index)
+        within = np.zeros(len(t), bool)
+        for s in plan.plan.segments:
+            if s.label.startswith(f'apple {a.index}: ') and s.label.split(': ', 1)[1] in DETOURS:
+                within |= (t >= s.start) & (t <= s.start + s.duration)
+        sway = [follows[i].reach(c, 100.0) for i, c in centres.items()]
+        later = Neighbours(cycle.checker.capsules, list(centres.values()), PASS, sway=sway)
+        fast.append(later.first_fast_touch(t, q[:, :cycle.arm.dof], within))
+    assert len(plan.apples) >= 10
+    assert not any(fast), fast                   # (planned as if they hung still, some pass faster)
 
 
 def test_with_the_pass_speed_off_a_harvest_plans_each_cycle_as_alone():

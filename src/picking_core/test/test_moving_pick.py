@@ -198,3 +198,10 @@ def test_a_harvest_aims_its_first_apple_at_its_sway_and_rides_it_the_others_plan
     assert [a.index for a in put_off.apples] == [1, 0] and not put_off.skipped
     with pytest.raises(ValueError, match='apple 0: its sway is too unsure to close on'):
         harvest.plan(_home(cycle), [_pose(swaying)], follows={0: unsure}, t0=t0)
+
+
+def test_a_follow_says_how_far_and_how_fast_its_apple_strays():
+    follow = Follow(lambda t: (_sway(t), np.eye(3) * 1e-6))
+    extent, speed = follow.reach(APPLE, 3.0)
+    assert extent == pytest.approx(0.02, rel=1e-3) and speed == pytest.approx(2 * np.pi * 0.02, rel=1e-3)
+    assert Follow(lambda t: (APPLE, np.eye(3) * 1e-6)).reach(APPLE, 0.0) == (0.0, 0.0)

@@ -19,16 +19,20 @@ from ..kinematics.capsules import point_segment_distances
 RADIUS = 0.045
 #: m: how near an apple counts as touching it (the capsules are the links' own size).
 MARGIN = 0.01
+#: The least speed allowed past a swaying apple, as a fraction of the speed allowed past a still one.
+MIN_PASS = 0.25
 
 
 @dataclass(frozen=True)
 class FastTouch:
-    """Link ``link`` passes apple ``apple`` (its index among the neighbours) at ``speed`` m/s at time ``time``."""
+    """Link ``link`` passes apple ``apple`` (its index among the neighbours) at ``speed`` m/s at time ``time``,
+    faster than ``limit``, the speed allowed past that apple (m/s)."""
 
     time: float
     apple: int
     link: str
     speed: float
+    limit: float = np.inf
 
     def __str__(self):
         return f'{self.link} passes apple {self.apple} at {self.speed:.2f} m/s, t = {self.time:.3f} s'
@@ -37,13 +41,19 @@ class FastTouch:
 class Neighbours:
     """The apples ``centres`` (n, 3), m in the arm's base, of radius ``radius``, seen by ``capsules``
     (an :class:`~picking_core.kinematics.capsules.ArmCapsules`), passed no faster than ``speed`` m/s (the
-    pick cycle's ``apple_pass_speed``: below the 1 m/s an apple bruises at, with a margin for the servo's lag
-    and an apple swaying towards the arm)."""
+    pick cycle's ``apple_pass_speed``: below the 1 m/s an apple bruises at, with a margin for the servo's lag).
+    ``sway`` (n, 2), for apples that sway: how far each strays from its centre (m) and its fastest (m/s), from
+    :meth:`~picking_core.moving_pick.Follow.reach`: the arm keeps that much farther off to count as passing it,
+    and passes it slower by its own speed (they meet at the sum of the two)."""
 
-    def __init__(self, capsules, centres, speed, radius=RADIUS, margin=MARGIN):
+    def __init__(self, capsules, centres, speed, radius=RADIUS, margin=MARGIN, sway=None):
         self.capsules = capsules
         self.centres = np.asarray(centres, float).reshape(-1, 3)
         self.radius, self.speed, self.margin = float(radius), float(speed), float(margin)
+        sway = np.zeros((len(self.centres), 2)) if sway is None else np.asarray(sway, float).reshape(-1, 2)
+        self.reach = self.radius + self.margin + sway[:, 0]
+        # (An apple swaying faster than the speed allowed is still passed, slowly.)
+        self.limits = np.maximum(self.speed - sway[:, 1], MIN_PASS * self.speed)
 
     def __len__(self):
         return len(self.centres)
@@ -51,7 +61,7 @@ class Neighbours:
     def _touching(self, seg):
         """(N, n, K) True where capsule k at sample i is within the margin of apple a."""
         d = point_segment_distances(self.centres[None, :, None], seg[:, None, :, 0], seg[:, None, :, 1])
-        return d < self.capsules.radius[None, None] + self.radius + self.margin
+        return d < self.capsules.radius[None, None] + self.reach[None, :, None]
 
     def first_fast_touch(self, t, q, within=None):
         """The first :class:`FastTouch` along the samples ``t`` (N,), ``q`` (N, dof) of a motion (only at the
@@ -65,11 +75,11 @@ class Neighbours:
         if not touching.any():
             return None
         speed = np.linalg.norm(np.gradient(seg, np.asarray(t, float), axis=0), axis=-1).max(axis=-1)   # (N, K)
-        fast = touching & (speed[:, None, :] > self.speed)
+        fast = touching & (speed[:, None, :] > self.limits[None, :, None])
         if not fast.any():
             return None
         i, a, k = (int(x[0]) for x in np.nonzero(fast))
-        return FastTouch(float(t[i]), a, self.capsules.links[k], float(speed[i, k]))
+        return FastTouch(float(t[i]), a, self.capsules.links[k], float(speed[i, k]), float(self.limits[a]))
 
     def touching(self, q, ignore=()):
         """(N,) True where the arm at ``q`` (N, dof) touches an apple other than those of ``ignore`` (indices)."""
