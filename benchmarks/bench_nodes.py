@@ -312,7 +312,7 @@ def run_stacks(n, rate, seconds, goal_every=2.0, ready_timeout=READY_TIMEOUT):
         finally:
             for w in watchers:
                 w.close()
-            stop_all([p for s in stacks for p in s.processes])     # every node at once
+            stop_all([p for s in stacks for p in s.processes])
     return out
 
 

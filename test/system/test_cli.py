@@ -180,3 +180,89 @@ def test_picking_goal_stop_cancels_a_pick_another_process_sent(tmp_path):
     finally:
         codes = stack.stop()
     assert set(codes.values()) == {0}, codes
+
+
+def _stack_started(tmp_path, until='is up'):
+    """`picking-stack` in a process group of its own, as a terminal runs it in the foreground, once a line of its
+    output says ``until``; with the pids of the nodes it started (by name)."""
+    import queue
+    import threading
+    proc = subprocess.Popen([str(BIN / 'picking-stack'), '--log-dir', str(tmp_path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=os.environ.copy(), process_group=0)
+    said = queue.Queue()
+
+    def read():
+        for line in proc.stdout:
+            said.put(line)
+        said.put('')                                 # the end of its output
+    threading.Thread(target=read, daemon=True).start()
+    pids, lines = {}, []
+    while not any(until in line for line in lines):
+        try:
+            line = said.get(timeout=120)
+        except queue.Empty:
+            line = ''
+        if not line:
+            _leave_nothing(proc, pids)
+            raise AssertionError(f'picking-stack never said {until!r}:\n' + ''.join(lines))
+        lines.append(line)
+        if m := re.match(r'picking-stack: started (\S+) \(pid (\d+)\)', line):
+            pids[m[1]] = int(m[2])
+    proc.said = said
+    return proc, pids
+
+
+def _running(pid):
+    try:
+        return Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0] != 'Z'
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def _leave_nothing(proc, pids):
+    """Kill (by pid) whatever a failed test left running."""
+    for pid in [proc.pid, *pids.values()]:
+        if _running(pid):
+            os.kill(pid, 9)
+
+
+@pytest.mark.parametrize('when', ['is up', 'started picking-planner'])
+def test_ctrl_c_in_the_terminal_stops_the_stack_node_by_node(tmp_path, when):
+    """Ctrl-C goes to the terminal's foreground process group: `picking-stack` alone gets it (each node runs in a
+    group of its own) and stops the nodes one after the other, each with exit code 0; while the arm is still coming
+    up, it stops them as soon, saying so (exit code 1: it never came up)."""
+    import signal
+    proc, pids = _stack_started(tmp_path, when)
+    try:
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=60)
+        out = ''.join(iter(lambda: proc.said.get(timeout=5), ''))
+    finally:
+        _leave_nothing(proc, pids)
+    if when == 'is up':
+        assert proc.returncode == 0, out
+    else:
+        assert proc.returncode == 1 and 'stopped before the arm in / was up' in out, out
+    for name, pid in pids.items():
+        assert f'stopped {name} (pid {pid}): exit code 0' in out, out
+
+
+def test_nodes_stop_by_themselves_when_their_stack_is_killed(tmp_path):
+    """A `picking-stack` killed before it could stop its nodes leaves none running: each sees its launcher go."""
+    import signal
+    import time
+    proc, pids = _stack_started(tmp_path)
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 30
+    while any(_running(pid) for pid in pids.values()) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = {name: pid for name, pid in pids.items() if _running(pid)}
+    for pid in left.values():                        # its threads' stacks to its log (faulthandler), for the report
+        os.kill(pid, signal.SIGUSR1)
+    time.sleep(1.0 if left else 0.0)
+    _leave_nothing(proc, pids)
+    logs = {p.name: p.read_text() for p in (tmp_path / 'latest' / 'root').glob('*.log')}
+    assert not left, {name: logs[f'{name}.1.log'][-3000:] for name in left}
+    for name in pids:
+        assert f'its launcher (pid {proc.pid}) is gone: stopping' in logs[f'{name}.1.log'], logs[f'{name}.1.log']

@@ -28,6 +28,7 @@ from pathlib import Path
 import yaml
 
 from picking_common.middleware import use_fast_discovery
+from picking_common.startup import LAUNCHER_PID
 
 #: The nodes in start order: their executable, ROS node name and parameter files in config/.
 NODES = {
@@ -58,8 +59,11 @@ class NodeProcess:
         self.name = name
         self.log_path = Path(log_path)
         self.log = open(self.log_path, 'w')
+        # A process group of its own: Ctrl-C in the terminal reaches the launcher alone, which stops the nodes one
+        # after the other (stop_all); the node stops by itself if the launcher goes without stopping it.
         self.proc = subprocess.Popen([str(BIN / name), *args], stdout=subprocess.PIPE if echo else self.log,
-                                     stderr=subprocess.STDOUT, env=os.environ.copy(), text=echo or None)
+                                     stderr=subprocess.STDOUT, env={**os.environ, LAUNCHER_PID: str(os.getpid())},
+                                     text=echo or None, process_group=0)
         self._echo = None
         if echo:
             self._echo = threading.Thread(target=self._copy_output, daemon=True)
@@ -136,13 +140,17 @@ def secured_args(node_name):
 
 
 def stop_all(processes, sig=signal.SIGINT, timeout=10.0):
-    """Signal every process by pid at once, as Ctrl-C in a terminal does, then wait for them all
-    within one ``timeout``; a process still running then is killed. Returns the exit codes in
-    order (None for a killed one)."""
+    """Stop ``processes`` one after the other, in the order given: signal one by pid, wait up to ``timeout`` for it
+    to exit (then kill it), then the next. Returns the exit codes in order (None for a killed one).
+
+    Not all at once: a node's DDS participant is destroyed while the others hold still. The Fast DDS of the PyPI
+    wheels can hang for good destroying a participant while a discovery callback of that participant runs, and
+    nodes stopping together send each other just those callbacks (docs/reliability.md)."""
+    codes = []
     for p in processes:
         p.signal(sig)
-    deadline = time.monotonic() + timeout
-    return [p.reap(deadline) for p in processes]
+        codes.append(p.reap(time.monotonic() + timeout))
+    return codes
 
 
 def write_stacks(processes, wait=0.5):
@@ -281,9 +289,10 @@ class Stack:
     def alive(self):
         return {p.name: p.alive() for p in self.processes}
 
-    def wait_ready(self, timeout=60.0):
+    def wait_ready(self, timeout=60.0, stopping=None):
         """Until the controller holds the arm (joint_commands flow) and the planner listens
-        (subscribes to its goal topics, serves its actions); RuntimeError if a node exits or time runs out.
+        (subscribes to its goal topics, serves its actions); RuntimeError if a node exits, time runs out or the
+        ``stopping`` event is set (a Ctrl-C while the arm comes up).
 
         Asks the ROS graph and reads the newest reference through this process's probe node
         (:func:`probe_node`), so that it works whether or not the caller has initialised rclpy.
@@ -312,6 +321,8 @@ class Stack:
                     and name('pick') in dict(get_action_names_and_types(node))
                 if holding and listening:
                     return
+                if stopping is not None and stopping.is_set():
+                    raise RuntimeError(f'stopped before the arm in {self.ns} was up')
                 dead = [n for n, up in self.alive().items() if not up]
                 if dead:
                     raise RuntimeError(f'{", ".join(dead)} exited while the arm was coming up '
@@ -327,7 +338,7 @@ class Stack:
                 node.destroy_subscription(sub)
 
     def stop(self, timeout=10.0):
-        """Stop every node at once (SIGINT, by pid); their exit codes by executable name."""
+        """Stop every node (SIGINT, by pid), one after the other in stop order; their exit codes by executable name."""
         procs = self.processes
         return {p.name: code for p, code in zip(procs, stop_all(procs, timeout=timeout))}
 
@@ -400,9 +411,9 @@ class PlatformStack:
             out.update({f'{s.ns}/{n}': up for n, up in s.alive().items()})
         return out
 
-    def wait_ready(self, timeout=90.0):
+    def wait_ready(self, timeout=90.0, stopping=None):
         for s in self.arms:
-            s.wait_ready(timeout)
+            s.wait_ready(timeout, stopping)
         if not self.harvester.alive():
             raise RuntimeError(f'picking-harvester exited (see {self.log_dir})')
 
@@ -534,7 +545,7 @@ def run(stack, args, stopping):
     when it came up and every node stopped with 0. A node that stopped by itself has the end of its log printed."""
     code = 0
     try:
-        stack.wait_ready(args.timeout)
+        stack.wait_ready(args.timeout, stopping)
         print(f'picking-stack: {up_line(stack, args)}. Logs: {stack.log_dir}. Ctrl-C stops it.', flush=True)
         end = time.monotonic() + args.duration if args.duration is not None else float('inf')
         while not stopping.is_set() and time.monotonic() < end:
@@ -543,7 +554,9 @@ def run(stack, args, stopping):
                 print(f'picking-stack: {", ".join(dead)} exited; stopping the rest', file=sys.stderr)
                 code = 1
                 break
-            stopping.wait(0.2)
+            # Not stopping.wait(): the signal handler's set() would wait for the lock that wait() holds in this
+            # same thread, for ever.
+            time.sleep(0.2)
     except RuntimeError as exc:
         print(f'picking-stack: {exc}', file=sys.stderr)
         code = 1

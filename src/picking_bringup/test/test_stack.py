@@ -30,7 +30,7 @@ class Stack:
         for i, p in enumerate(self.processes):        # exit codes go by name: each its own
             p.name = f'{i}'
 
-    def wait_ready(self, timeout):
+    def wait_ready(self, timeout, stopping=None):
         for p in self.processes:
             deadline = time.monotonic() + timeout
             while 'up' not in p.output() and time.monotonic() < deadline:
@@ -97,3 +97,44 @@ def test_an_arm_gives_every_node_its_urdf_and_its_settings_after_their_own(tmp_p
         assert stack.files[name][-1] == 'arms/ur5e.yaml' and (stack.config / stack.files[name][-1]).exists()
     with pytest.raises(ValueError, match="no arm 'nope': config/arms has fr3, ur5e"):
         bringup.Stack(log_dir=tmp_path, arm='nope')
+
+
+#: Says when it was asked to stop and when it is done, taking a moment in between (as a node's teardown does).
+SLOW_STOP = ('import signal, sys, time\n'
+             'def bye(*_):\n'
+             '    print("asked", time.monotonic(), flush=True)\n'
+             '    time.sleep(0.3)\n'
+             '    print("done", time.monotonic(), flush=True)\n'
+             '    sys.exit(0)\n'
+             'signal.signal(signal.SIGINT, bye)\n'
+             'print("up", flush=True)\n'
+             'while True: time.sleep(0.05)\n')
+
+
+def test_stop_all_stops_each_process_after_the_one_before_has_exited(tmp_path):
+    """Nodes that stop together send each other the discovery callbacks during which the wheels' Fast DDS can hang
+    destroying a participant: each is asked only once the one before it is gone."""
+    from picking_bringup.stack import stop_all
+    stack = Stack(tmp_path, [SLOW_STOP] * 3)
+    stack.wait_ready(10.0)
+    assert stop_all(stack.processes) == [0, 0, 0]
+    times = []
+    for p in stack.processes:
+        said = dict(line.split() for line in p.output().splitlines() if line.split()[0] in ('asked', 'done'))
+        times.append((float(said['asked']), float(said['done'])))
+    for (_, done), (asked, _) in zip(times, times[1:]):
+        assert asked > done, times
+
+
+def test_a_node_starts_in_a_process_group_of_its_own_naming_its_launcher(tmp_path):
+    """A terminal's Ctrl-C goes to its foreground process group: it reaches the launcher, which stops the nodes in
+    order, and not every node at once."""
+    import os
+
+    from picking_common.startup import LAUNCHER_PID
+    script = 'import os; print(os.getpgid(0), os.environ["' + LAUNCHER_PID + '"], flush=True)'
+    p = NodeProcess(Path(sys.executable).name, ['-c', script], tmp_path / 'p.log')
+    assert p.reap(time.monotonic() + 10.0) == 0
+    group, launcher = p.output().split()
+    assert int(group) == p.pid != os.getpgid(0)
+    assert int(launcher) == os.getpid()

@@ -14,6 +14,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from .middleware import use_fast_discovery
+from .startup import LAUNCHER_PID, launcher_gone
 from .topics import destroy_latest
 
 #: s a node may take to stop once asked (its launcher kills it some seconds later).
@@ -39,6 +40,7 @@ def run_node(make_node, args=None, help=None):
     refused = _own_arguments(argv, prog, help)
     if refused is not None:
         return refused
+    orphaned = launcher_gone(os.environ)         # now, while the launcher that started this process still runs
     stop = threading.Event()
 
     def on_signal(signum, frame):
@@ -79,6 +81,9 @@ def run_node(make_node, args=None, help=None):
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
+            if orphaned():
+                node.get_logger().warning(f'its launcher (pid {os.environ[LAUNCHER_PID]}) is gone: stopping')
+                break
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -13,7 +13,25 @@ from __future__ import annotations
 
 import faulthandler
 import importlib
+import os
 import signal
+
+#: The variable a launcher sets to its process id: the node stops when that process is gone.
+LAUNCHER_PID = 'PICKING_LAUNCHER_PID'
+
+
+def launcher_gone(environ):
+    """A check, True once the launcher named by :data:`LAUNCHER_PID` in ``environ`` is no longer this process's
+    parent (always False without one): a node started in a process group of its own does not get the terminal's
+    Ctrl-C, and must not outlive a launcher killed before it could stop the node. A variable inherited from further
+    up (the launcher is not the parent at start) is ignored."""
+    try:
+        launcher = int(environ.get(LAUNCHER_PID, ''))
+    except ValueError:
+        return lambda: False
+    if os.getppid() != launcher:
+        return lambda: False
+    return lambda: os.getppid() != launcher
 
 
 def _stop(signum, frame):

@@ -1,8 +1,11 @@
-"""A node process stopped while it is still importing ends quietly (exit code 0, no traceback)."""
+"""A node process stopped while it is still importing ends quietly (exit code 0, no traceback); a node started by
+a launcher sees it go."""
 
+import os
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -72,3 +75,47 @@ def test_without_it_python_prints_a_traceback(tmp_path):
         proc.kill()
     assert proc.returncode != 0 and 'KeyboardInterrupt' in err
 
+
+
+#: A launcher that starts a "node" watching it with launcher_gone, says the node's pid, and waits to be killed.
+LAUNCHER = '''
+import os, subprocess, sys, time
+node = (
+    "import os, sys, time\\n"
+    "from picking_common.startup import launcher_gone\\n"
+    "gone = launcher_gone(os.environ)\\n"
+    "print('watching', flush=True)\\n"
+    "end = time.monotonic() + 30\\n"
+    "while not gone() and time.monotonic() < end: time.sleep(0.05)\\n"
+    "print('gone' if gone() else 'still there', flush=True)\\n")
+child = subprocess.Popen([sys.executable, '-c', node], env={**os.environ, 'PICKING_LAUNCHER_PID': str(os.getpid())},
+                         stdout=open(sys.argv[1], 'w'))
+print(child.pid, flush=True)
+time.sleep(60)
+'''
+
+
+def test_a_node_sees_its_launcher_go(tmp_path):
+    out = tmp_path / 'node.out'
+    launcher = subprocess.Popen([sys.executable, '-c', LAUNCHER, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        node = int(launcher.stdout.readline())
+        deadline = time.monotonic() + 20
+        while 'watching' not in out.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert 'gone' not in out.read_text()
+        launcher.kill()
+        launcher.wait()
+        while 'gone' not in out.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        launcher.kill()
+    assert out.read_text().split() == ['watching', 'gone'], f'node {node}: {out.read_text()}'
+
+
+def test_a_launcher_variable_inherited_from_further_up_is_ignored():
+    from picking_common.startup import LAUNCHER_PID, launcher_gone
+    assert launcher_gone({LAUNCHER_PID: str(os.getppid())})() is False
+    assert launcher_gone({LAUNCHER_PID: '1'})() is False          # not this process's parent: not its launcher
+    assert launcher_gone({LAUNCHER_PID: 'x'})() is False
+    assert launcher_gone({})() is False
