@@ -44,6 +44,18 @@ def make_realtime(priority, logger, what='the loop thread'):
     return True
 
 
+def make_normal():
+    """Run the calling thread under the normal scheduler again (nothing where it already does, or cannot change).
+
+    A node's teardown waits on the middleware's own threads, which run at normal priority: a real-time thread
+    waiting for them on their core would keep them from running."""
+    try:
+        if os.sched_getscheduler(0) != os.SCHED_OTHER:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (PermissionError, OSError, AttributeError):
+        pass
+
+
 def check_priority(priority, name='thread_priority'):
     """A thread priority as an int: 0 (normal) or 1-99 (SCHED_FIFO); ValueError otherwise."""
     if isinstance(priority, float) and not priority.is_integer():

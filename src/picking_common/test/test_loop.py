@@ -135,3 +135,28 @@ def test_the_periodic_loop_refuses_a_bad_period_priority_or_phase():
         period = kwargs.pop('period')
         with pytest.raises(ValueError):
             PeriodicLoop(period, lambda d, n: None, name='x', logger=_Logger(), **kwargs)
+
+
+def test_make_normal_takes_a_real_time_thread_back_to_the_normal_scheduler():
+    import os
+    import threading
+
+    from picking_common.loop import make_normal, make_realtime
+    seen = {}
+
+    def run():
+        seen['realtime'] = make_realtime(10, _Quiet())
+        seen['before'] = os.sched_getscheduler(0)
+        make_normal()
+        seen['after'] = os.sched_getscheduler(0)
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join()
+    if not seen['realtime']:
+        pytest.skip('this machine does not let a thread run under SCHED_FIFO')
+    assert (seen['before'], seen['after']) == (os.SCHED_FIFO, os.SCHED_OTHER)
+
+
+class _Quiet:
+    def warning(self, message):
+        pass
