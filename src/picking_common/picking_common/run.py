@@ -13,6 +13,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from .loop import make_normal
 from .middleware import use_fast_discovery
 from .startup import LAUNCHER_PID, launcher_gone
 from .topics import destroy_latest
@@ -106,6 +107,7 @@ def _teardown(node, executor):
     finish within STOP_LIMIT writes every thread's stack and exits 1 (from C: even a thread stuck holding the GIL
     in the middleware cannot hold the process up)."""
     faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
+    make_normal()           # a node that made this thread real-time to serve tears down as any other
     if node is not None:
         close = getattr(node, 'close', None)
         if close:

@@ -76,7 +76,6 @@ def test_without_it_python_prints_a_traceback(tmp_path):
     assert proc.returncode != 0 and 'KeyboardInterrupt' in err
 
 
-
 #: A launcher that starts a "node" watching it with launcher_gone, says the node's pid, and waits to be killed.
 LAUNCHER = '''
 import os, subprocess, sys, time

@@ -34,7 +34,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from picking_common.codec import Codec
 from picking_common.joint_state import reorder, seconds
-from picking_common.loop import PeriodicLoop, check_priority, make_normal, make_realtime
+from picking_common.loop import PeriodicLoop, check_priority, make_realtime
 from picking_common.loop_stats import LoopStats
 from picking_common.params import declare, usage
 from picking_common.run import run_node
@@ -451,7 +451,6 @@ class ControllerNode(Node):
 
     def close(self):
         self.loop.stop()
-        make_normal()                 # the executor thread, real-time while it served, tears down as any other
         self.states.destroy()
         if self._commanding:
             self.get_logger().info('control loop: ' + LoopStats.describe(self.loop_stats.summary()))
