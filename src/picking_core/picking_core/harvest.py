@@ -442,6 +442,14 @@ def empty_below(gripper_closed):
     return gripper_closed + HOLDING_MARGIN
 
 
+def carried(opening, empty):
+    """Whether fingers whose newest opening while they carried an apple was ``opening`` (m; None: not measured)
+    held it, ``empty`` being :func:`empty_below`: True, False or None. The newest reading decides, not the
+    narrowest: fingers that lose the apple close and stay closed, while a dip as they settle on it (a squeeze, a
+    contact the gripper's sensing reports late) passes."""
+    return None if opening is None else bool(opening >= empty)
+
+
 def carrying(held, t):
     """Whether ``t`` s into a plan the fingers carry an apple they took, settled on it: ``held`` is the carry's
     (grasp end, release start), s into the plan (None: a plan without a gripper)."""
@@ -463,21 +471,18 @@ class HarvestRun:
         self.missed = {} if before is None else before.missed
 
     def watch(self, t, opening):
-        """The fingers measured at ``opening`` (m) at ``t`` (the controller's clock): noted for the apple they
-        carry then."""
+        """The fingers measured at ``opening`` (m) at ``t`` (the controller's clock): the newest opening of the
+        apple they carry then (see :func:`carried`)."""
         if self.plan.empty_below <= 0.0 or t >= self.until:
             return
         for a in self.plan.apples:
             if carrying(a.held, t - self.start):
-                self.grip[a.index] = min(self.grip.get(a.index, np.inf), float(opening))
+                self.grip[a.index] = float(opening)
 
     def holding(self, apple):
-        """Whether the fingers held ``apple`` (an AppleTimes) through its carry: True, False (they closed on
-        nothing, or lost it), None (not measured: no gripper, or no joint_states then)."""
-        narrowest = self.grip.get(apple.index)
-        if narrowest is None:
-            return None
-        return bool(narrowest >= self.plan.empty_below)
+        """Whether the fingers held ``apple`` (an AppleTimes) at the end of its carry: True, False (they closed
+        on nothing, or lost it), None (not measured: no gripper, or no joint_states then)."""
+        return carried(self.grip.get(apple.index), self.plan.empty_below)
 
     def miss(self, apple, why):
         """``apple`` was not in the fingers (``why``, in words): not counted as picked."""

@@ -24,7 +24,7 @@ from typing import Protocol
 import numpy as np
 
 from ..collision import STEP as COLLISION_STEP
-from ..harvest import HarvestRun, carrying, empty_below, new_apples
+from ..harvest import HarvestRun, carried, carrying, empty_below, new_apples
 from ..kinematics.paths import check_joint_limits
 from ..moving_pick import APPLE_WIDTH, AimHolds, Follow, final_approach
 from ..sway import Sightings, SwayFit
@@ -386,7 +386,7 @@ class GoalRunner:
 
     def _pick_grips(self):
         """The fingers measured while a running pick's plan carries its apple (from the grasp's end to the
-        release): noted, to tell at its end whether they held it."""
+        release): the newest opening noted, to tell at its end whether they held it (see ``carried``)."""
         measured = self.port.measured()
         if not self.grasp_check or measured is None or measured[1] is None:
             return
@@ -397,7 +397,7 @@ class GoalRunner:
                 continue
             pick = self._picks.get(flight.goal.key)
             if pick is not None and carrying((extra['grasp_end'], extra['release_start']), now - flight.start):
-                pick.grip = min(math.inf if pick.grip is None else pick.grip, float(measured[1]))
+                pick.grip = float(measured[1])
 
     def _serve_waiting(self):
         if self.waiting.goal is None:
@@ -647,8 +647,8 @@ class GoalRunner:
         if ending.outcome == Outcome.SUCCEEDED and goal.target.back_off:
             ending = Ending(Outcome.ABORTED, f'{goal.target.back_off}: it backed off home without closing')
         grip = self._picks[goal.key].grip if goal.key in self._picks else None
-        if ending.outcome == Outcome.SUCCEEDED and grip is not None and \
-                grip < empty_below(self.port.goal_planner().pick.gripper_closed):
+        if ending.outcome == Outcome.SUCCEEDED and \
+                carried(grip, empty_below(self.port.goal_planner().pick.gripper_closed)) is False:
             ending = Ending(Outcome.ABORTED, f'the apple was not in the fingers: they closed to {grip * 100:.1f} cm '
                                              'while they should have carried it (the arm went on home)')
         if ending.late:
