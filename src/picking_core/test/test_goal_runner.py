@@ -643,9 +643,10 @@ def test_a_pick_of_a_still_apple_the_camera_sees_keeps_the_plan_it_was_sent(port
                                                                                                     abs=1e-6)
 
 
-def test_a_moving_picks_re_plan_that_came_too_late_is_aimed_again_and_the_pick_still_ends(port):
-    """A re-target's plan the controller refused as late (its stamp past) leaves no plan of the goal's own to keep
-    the closing instant of: the pick is aimed afresh, its new plan sent, and it ends when that plan does."""
+def test_a_moving_picks_re_plan_that_came_too_late_leaves_the_plan_before_it_running_as_the_picks(port):
+    """A re-target's plan the controller refused as late (its stamp past) never ran: the plan before it runs on,
+    and the pick is again that plan's (its closing instant kept, not aimed afresh with the fingers opened on the
+    tree); the pick is aimed again from it, and it ends when that plan does."""
     rng = np.random.default_rng(4)
     runner = GoalRunner(port)
     _camera(runner, port, 2.0, _swaying, rng)
@@ -659,12 +660,34 @@ def test_a_moving_picks_re_plan_that_came_too_late_is_aimed_again_and_the_pick_s
         _camera(runner, port, 1 / 30, _swaying, rng)
         runner.on_feedback(port.sent[-1][0], port.t, port.t - first.start, 0.0)
     late = port.sent[-1][0]
-    sent = len(port.sent)
+    before = late.replaces
+    assert before is not None and before.handle is not None and before is not late
+    closes = before.start + before.planned.plan.extra['closes_in']
+    sent, held = len(port.sent), runner._moves['p']['held']
     runner.on_result(late, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.004 s in the past')
-    assert len(port.sent) == sent + 1 and port.sent[-1][0].goal.key == 'p', runner._moves['p']
-    again = accept(runner, port)
-    runner.on_result(again, 'succeeded', 0, '')
+    # Aimed again from the plan that runs, whose closing is sure: held, nothing new sent.
+    assert len(port.sent) == sent and runner._moves['p']['held'] == held + 1
+    assert runner.lifecycle.flights['p'] is before and not before.overtaken
+    assert runner._picks['p'].closes == pytest.approx(closes)
+    runner.on_result(before, 'succeeded', 0, '')
     assert port.states('p')[-1] == 'succeeded'
+
+
+def test_a_re_target_the_controller_rejected_leaves_the_plan_before_it_running(port):
+    """A pose goal re-targeted mid-motion whose new plan the controller rejects: the plan before it runs on and
+    still answers for the goal, which ends when that plan does."""
+    runner = GoalRunner(port)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    first = accept(runner, port)
+    runner.on_feedback(first, port.t, 0.0, 0.0)
+    port.t += 0.2
+    assert runner.retarget(pose_matrix([0.6, 0.15, 0.4], DOWN), port.t_wall) is None
+    second = port.sent[-1][0]
+    assert second is not first and second.replaces is first
+    runner.on_response(second, False)
+    assert runner.lifecycle.flights['g'] is first
+    runner.on_result(first, 'succeeded', 0, '')
+    assert port.states('g')[-1] == 'succeeded'
 
 
 EMPTY = None                                      # the fingers at their closed opening: nothing between them

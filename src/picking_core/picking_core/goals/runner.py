@@ -445,7 +445,10 @@ class GoalRunner:
         start = self._in_time(start, took)
         self.timing.planned(goal.kind.value, took)
         previous = self.lifecycle.flights.get(goal.key)
-        replaces = previous if goal.rest is not None else None
+        # (The plan it takes over from runs on at the controller if this one never runs: the rest of a harvest,
+        # and a re-target of a plan the controller took.)
+        replaces = previous if goal.rest is not None or (
+            goal.retargets and previous is not None and previous.handle is not None) else None
         flight = Flight(goal, planned, start.time or None, names, self.port.wall())
         flight.extra = self._figures(goal, planned, start, took, planner)
         flight.serial, flight.replaces = next(self._serial), replaces
@@ -626,13 +629,18 @@ class GoalRunner:
     def _learnt_start(self, flight):
         if self.running is not None and self.running.key == flight.serial:
             self.running = replace(self.running, start=flight.start)
-        pick = self._picks.get(flight.goal.key)
-        if 'closes_in' in flight.planned.plan.extra and pick is not None and pick.closes is not None:
-            # (A plan the controller bridged to runs later than planned: its fingers close later too.)
-            pick.closes = flight.start + self.timing.delay + flight.planned.plan.extra['closes_in']
+        # (A plan the controller bridged to runs later than planned: its fingers close later too.)
+        self._closes_by(flight)
         run = self.harvests.get(flight.goal.key)
         if run is not None and run.start is None:
             run.start = run.first = flight.start
+
+    def _closes_by(self, flight):
+        """A moving pick's closing instant (schedule s) by ``flight``'s plan, once the plan's start is known."""
+        pick = self._picks.get(flight.goal.key)
+        if 'closes_in' in flight.planned.plan.extra and pick is not None and pick.closes is not None and \
+                flight.start is not None:
+            pick.closes = flight.start + self.timing.delay + flight.planned.plan.extra['closes_in']
 
     def on_result(self, flight, status, code, text):
         """The controller's result for ``flight``'s plan (``status``: 'succeeded', 'canceled' or 'aborted')."""
@@ -673,9 +681,12 @@ class GoalRunner:
         """``flight``'s plan reached the controller too late to run as planned, or was not answered by its start:
         its goal is planned again, further ahead, a bounded number of times."""
         self.timing.delivered(flight.goal.kind.value, self.port.wall() - flight.sent, late=True)
-        if flight.replaces is not None:
+        if flight.replaces is not None and flight.goal.rest is not None:
             self._late_rest(flight, ending)
             return
+        if flight.replaces is not None:
+            # A re-target: the plan before it runs on and is the goal's again (a moving pick keeps its closing).
+            self._displaced_runs_on(flight)
         if flight.goal.attempt >= LATE_REPLANS:
             self.refuse(flight.goal, f'its plan reached the controller too late {flight.goal.attempt + 1} times '
                                      f'(a stalled or overloaded machine?): {ending.message}', ending.code)
@@ -690,7 +701,7 @@ class GoalRunner:
         from runs on, and the rest (with the apples it took in) is planned again to take over after the next apple
         in hand. A rest that only aimed the next apple at its sway is not: that apple runs as planned, and the one
         after it is aimed before its turn (:meth:`reaim`)."""
-        self._rest_not_run(flight)
+        self._displaced_runs_on(flight)
         goal, old = flight.goal, flight.replaces
         self.timing.delay = 0.0
         known = set(old.goal.target.indices)
@@ -712,11 +723,14 @@ class GoalRunner:
                               f'({ending.message}); planning it again after the next apple in hand')
         self._handle(again.again(attempt=goal.attempt + 1))
 
-    def _rest_not_run(self, flight):
-        """The rest of a harvest ``flight`` will not run: the plan it was to take over from runs on, and is again
-        what the planner knows runs (the goal's flight, its HarvestRun, the controller's plan)."""
+    def _displaced_runs_on(self, flight):
+        """``flight`` (the rest of a harvest, a re-target) will not run: the plan it was to take over from runs on,
+        and is again what the planner knows runs (the goal's flight, its HarvestRun, the controller's plan, a
+        pick's closing instant)."""
         run, running = flight.displaced
-        self.lifecycle.flights[flight.goal.key] = flight.replaces
+        old = self.lifecycle.flights[flight.goal.key] = flight.replaces
+        old.superseded = old.overtaken = False
+        self._closes_by(old)
         if run is not None:
             # (The apples the rest's run reported in the box meanwhile are the running plan's: said once.)
             gone = self.harvests.get(flight.goal.key)
@@ -730,8 +744,11 @@ class GoalRunner:
         was to take over from (that one would hit what changed)."""
         old = flight.replaces
         if old is not None and old.handle is not None:
-            self._rest_not_run(flight)
-            self._rest_failed(flight.goal, old, why)
+            self._displaced_runs_on(flight)
+            if flight.goal.rest is not None:
+                self._rest_failed(flight.goal, old, why)
+            else:
+                self.refuse(flight.goal, why)         # a re-target: the plan before it runs on
             return
         self.end(flight.goal, Ending(Outcome.REFUSED, why))
 
