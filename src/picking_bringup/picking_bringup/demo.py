@@ -18,7 +18,6 @@ import argparse
 import json
 import os
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -37,12 +36,12 @@ def run_ros_part(args, config, out, demo, stack_initial):
     from diagnostic_msgs.msg import DiagnosticStatus
     from nav_msgs.msg import Path as PathMsg
     from picking_interfaces.action import Pick
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
 
     from picking_common.actions import ActionClient
+    from picking_common.run import BackgroundSpin
 
     from .recording import Recorder
 
@@ -65,10 +64,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
     rec.add(node, {'joint_states': JointState, 'joint_commands': JointState}, qos_profile_sensor_data)
     rec.add_frames(node)
     pick = ActionClient(node, Pick, 'pick')
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    spinner = BackgroundSpin(node)
 
     def spin_until(pred, timeout, what):
         end = time.monotonic() + timeout
@@ -94,8 +90,7 @@ def run_ros_part(args, config, out, demo, stack_initial):
         events['error'] = str(exc)
         log(f'FAILED: {exc}')
     finally:
-        executor.shutdown()
-        spinner.join(timeout=2.0)
+        spinner.stop()
         node.destroy_node()
         rclpy.try_shutdown()
         events['exit_codes'] = stack.stop()
