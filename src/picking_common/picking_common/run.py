@@ -15,7 +15,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from .loop import make_normal
 from .middleware import use_fast_discovery
-from .startup import LAUNCHER_PID, launcher_gone
+from .startup import LAUNCHER_PID, launcher_check
 from .topics import destroy_latest
 
 #: s a node may take to stop once asked (its launcher kills it some seconds later).
@@ -41,7 +41,7 @@ def run_node(make_node, args=None, help=None):
     refused = _own_arguments(argv, prog, help)
     if refused is not None:
         return refused
-    orphaned = launcher_gone(os.environ)         # now, while the launcher that started this process still runs
+    orphaned = launcher_check()
     stop = threading.Event()
 
     def on_signal(signum, frame):

@@ -34,6 +34,16 @@ def launcher_gone(environ):
     return lambda: os.getppid() != launcher
 
 
+#: This process's launcher check, decided by :func:`quietly` at its first step (None: not started through it).
+_launcher = None
+
+
+def launcher_check():
+    """This process's :func:`launcher_gone` check: the one :func:`quietly` decided as the process started, while
+    its launcher surely ran (a launcher killed while the node still imports is then noticed), else decided now."""
+    return _launcher if _launcher is not None else launcher_gone(os.environ)
+
+
 def _stop(signum, frame):
     raise SystemExit(0)
 
@@ -41,6 +51,8 @@ def _stop(signum, frame):
 def quietly(target):
     """Run ``target`` (``'module:function'``), the signals that stop a node ending it quietly until it takes them
     over; its return value (the process's exit code)."""
+    global _launcher
+    _launcher = launcher_gone(os.environ)
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
     if hasattr(signal, 'SIGUSR1'):

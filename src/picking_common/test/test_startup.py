@@ -112,6 +112,46 @@ def test_a_node_sees_its_launcher_go(tmp_path):
     assert out.read_text().split() == ['watching', 'gone'], f'node {node}: {out.read_text()}'
 
 
+#: A launcher whose "node" starts through quietly: its module takes 1.5 s to import, then watches with launcher_check.
+SLOW_LAUNCHER = '''
+import os, subprocess, sys, time
+module = (
+    "import time\\n"
+    "print('importing', flush=True)\\n"
+    "time.sleep(1.5)\\n"
+    "def main():\\n"
+    "    from picking_common.startup import launcher_check\\n"
+    "    gone = launcher_check()\\n"
+    "    end = time.monotonic() + 30\\n"
+    "    while not gone() and time.monotonic() < end: time.sleep(0.05)\\n"
+    "    print('gone' if gone() else 'still there', flush=True)\\n")
+open(os.path.join(sys.argv[2], 'slow_watcher.py'), 'w').write(module)
+node = f"import sys; sys.path.insert(0, {sys.argv[2]!r}); from picking_common.startup import quietly; quietly('slow_watcher:main')"
+child = subprocess.Popen([sys.executable, '-c', node], env={**os.environ, 'PICKING_LAUNCHER_PID': str(os.getpid())},
+                         stdout=open(sys.argv[1], 'w'))
+print(child.pid, flush=True)
+time.sleep(60)
+'''
+
+
+def test_a_node_whose_launcher_goes_while_it_still_imports_sees_it_go(tmp_path):
+    out = tmp_path / 'node.out'
+    launcher = subprocess.Popen([sys.executable, '-c', SLOW_LAUNCHER, str(out), str(tmp_path)], stdout=subprocess.PIPE,
+                                text=True)
+    try:
+        node = int(launcher.stdout.readline())
+        deadline = time.monotonic() + 20
+        while 'importing' not in out.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        launcher.kill()                                            # while the node's module still imports
+        launcher.wait()
+        while 'gone' not in out.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        launcher.kill()
+    assert out.read_text().split() == ['importing', 'gone'], f'node {node}: {out.read_text()}'
+
+
 def test_a_launcher_variable_inherited_from_further_up_is_ignored():
     from picking_common.startup import LAUNCHER_PID, launcher_gone
     assert launcher_gone({LAUNCHER_PID: str(os.getppid())})() is False
