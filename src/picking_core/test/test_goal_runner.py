@@ -15,7 +15,7 @@ from picking_core.goals.runner import STREAM_PAUSE, GoalRunner
 from picking_core.goals.start import Running, Timing, choose_start
 from picking_core.harvest import SIDEWAYS
 from picking_core.kinematics import pose_matrix
-from picking_core.moving_pick import Follow
+from picking_core.moving_pick import Follow, final_approach
 from picking_core.pick_cycle import HOME_POSITIONS
 
 DOWN = Rotation.from_euler('xyz', [180, 0, 0], degrees=True).as_quat()
@@ -643,10 +643,9 @@ def test_a_pick_of_a_still_apple_the_camera_sees_keeps_the_plan_it_was_sent(port
                                                                                                     abs=1e-6)
 
 
-def test_a_moving_picks_re_plan_that_came_too_late_leaves_the_plan_before_it_running_as_the_picks(port):
-    """A re-target's plan the controller refused as late (its stamp past) never ran: the plan before it runs on,
-    and the pick is again that plan's (its closing instant kept, not aimed afresh with the fingers opened on the
-    tree); the pick is aimed again from it, and it ends when that plan does."""
+def _late_re_aim(port):
+    """A swaying apple's pick re-targeted frame by frame into its approach: the runner, its newest plan (sent, not
+    yet refused) and the accepted plan that one takes over from."""
     rng = np.random.default_rng(4)
     runner = GoalRunner(port)
     _camera(runner, port, 2.0, _swaying, rng)
@@ -662,6 +661,14 @@ def test_a_moving_picks_re_plan_that_came_too_late_leaves_the_plan_before_it_run
     late = port.sent[-1][0]
     before = late.replaces
     assert before is not None and before.handle is not None and before is not late
+    return runner, late, before
+
+
+def test_a_moving_picks_re_plan_that_came_too_late_leaves_the_plan_before_it_running_as_the_picks(port):
+    """A re-target's plan the controller refused as late (its stamp past) never ran: the plan before it runs on,
+    and the pick is again that plan's (its closing instant kept, not aimed afresh with the fingers opened on the
+    tree); the pick is aimed again from it, and it ends when that plan does."""
+    runner, late, before = _late_re_aim(port)
     closes = before.start + before.planned.plan.extra['closes_in']
     sent, held = len(port.sent), runner._moves['p']['held']
     runner.on_result(late, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.004 s in the past')
@@ -669,6 +676,19 @@ def test_a_moving_picks_re_plan_that_came_too_late_leaves_the_plan_before_it_run
     assert len(port.sent) == sent and runner._moves['p']['held'] == held + 1
     assert runner.lifecycle.flights['p'] is before and not before.overtaken
     assert runner._picks['p'].closes == pytest.approx(closes)
+    runner.on_result(before, 'succeeded', 0, '')
+    assert port.states('p')[-1] == 'succeeded'
+
+
+def test_a_moving_picks_re_plan_refused_once_the_older_plans_straight_approach_began_is_not_planned_again(port):
+    """The refusal of a late re-aim comes after the plan before it has closed the fingers (the planner learned of it
+    late, as in CI): a new plan would back out of the approach and open them, so none is made; that plan carries
+    the apple on to the box."""
+    runner, late, before = _late_re_aim(port)
+    port.t = before.start + before.planned.plan.extra["closes_in"] + 0.05
+    sent = len(port.sent)
+    runner.on_result(late, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.004 s in the past')
+    assert len(port.sent) == sent and runner.lifecycle.flights['p'] is before
     runner.on_result(before, 'succeeded', 0, '')
     assert port.states('p')[-1] == 'succeeded'
 

@@ -287,8 +287,7 @@ class GoalRunner:
         """Re-target running ``goal`` to ``pose`` aimed by ``follow`` (a pick's): None, or why it was not taken."""
         self._paused.pop(goal.key, None)
         flight = self.lifecycle.flights.get(goal.key)
-        if goal.kind == Kind.PICK and flight is not None and flight.elapsed is not None and \
-                flight.elapsed >= final_approach(flight.planned.plan):
+        if goal.kind == Kind.PICK and flight is not None and self._approach_begun(flight):
             return 'the final straight approach to the apple has begun: its target no longer moves'
         self._moved(goal.key, 'received')
         target = goal.target.moved_to(pose)
@@ -297,6 +296,13 @@ class GoalRunner:
         self._handle(goal.again(target=target, came=wall, attempt=0, retargets=goal.retargets + 1,
                                 moved_by=stamp))
         return None
+
+    def _approach_begun(self, flight):
+        """Whether pick ``flight``'s final straight approach has begun, by the controller's feedback or, when that is
+        older (a plan that was not the goal's for a while), by the schedule clock."""
+        elapsed = [t for t in (flight.elapsed, None if flight.start is None else self.schedule_now() - flight.start)
+                   if t is not None]
+        return bool(elapsed) and max(elapsed) >= final_approach(flight.planned.plan)
 
     def _moved(self, key, what):
         counts = self._moves.setdefault(key, dict.fromkeys(('received', 'spliced', 'replaced', 'refused', 'held'), 0))
@@ -687,6 +693,9 @@ class GoalRunner:
         if flight.replaces is not None:
             # A re-target: the plan before it runs on and is the goal's again (a moving pick keeps its closing).
             self._displaced_runs_on(flight)
+            if flight.goal.kind == Kind.PICK and self._approach_begun(flight.replaces):
+                self._moved(flight.goal.key, 'held')  # its target no longer moves: a new plan would back out
+                return
         if flight.goal.attempt >= LATE_REPLANS:
             self.refuse(flight.goal, f'its plan reached the controller too late {flight.goal.attempt + 1} times '
                                      f'(a stalled or overloaded machine?): {ending.message}', ending.code)
