@@ -94,13 +94,16 @@ time.sleep(60)
 '''
 
 
-def test_a_node_sees_its_launcher_go(tmp_path):
+def _launcher_killed(tmp_path, script, first):
+    """Run launcher ``script`` (its node writes to the file its first argument names, ``tmp_path`` its second); once
+    the node has written ``first``, kill the launcher; what the node wrote by the time it says 'gone' (20 s at most)."""
     out = tmp_path / 'node.out'
-    launcher = subprocess.Popen([sys.executable, '-c', LAUNCHER, str(out)], stdout=subprocess.PIPE, text=True)
+    launcher = subprocess.Popen([sys.executable, '-c', script, str(out), str(tmp_path)], stdout=subprocess.PIPE,
+                                text=True)
     try:
-        node = int(launcher.stdout.readline())
+        int(launcher.stdout.readline())                         # the node's pid: it runs
         deadline = time.monotonic() + 20
-        while 'watching' not in out.read_text() and time.monotonic() < deadline:
+        while first not in out.read_text() and time.monotonic() < deadline:
             time.sleep(0.05)
         assert 'gone' not in out.read_text()
         launcher.kill()
@@ -109,7 +112,11 @@ def test_a_node_sees_its_launcher_go(tmp_path):
             time.sleep(0.05)
     finally:
         launcher.kill()
-    assert out.read_text().split() == ['watching', 'gone'], f'node {node}: {out.read_text()}'
+    return out.read_text().split()
+
+
+def test_a_node_sees_its_launcher_go(tmp_path):
+    assert _launcher_killed(tmp_path, LAUNCHER, 'watching') == ['watching', 'gone']
 
 
 #: A launcher whose "node" starts through quietly: its module takes 1.5 s to import, then watches with launcher_check.
@@ -135,21 +142,8 @@ time.sleep(60)
 
 
 def test_a_node_whose_launcher_goes_while_it_still_imports_sees_it_go(tmp_path):
-    out = tmp_path / 'node.out'
-    launcher = subprocess.Popen([sys.executable, '-c', SLOW_LAUNCHER, str(out), str(tmp_path)], stdout=subprocess.PIPE,
-                                text=True)
-    try:
-        node = int(launcher.stdout.readline())
-        deadline = time.monotonic() + 20
-        while 'importing' not in out.read_text() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        launcher.kill()                                            # while the node's module still imports
-        launcher.wait()
-        while 'gone' not in out.read_text() and time.monotonic() < deadline:
-            time.sleep(0.05)
-    finally:
-        launcher.kill()
-    assert out.read_text().split() == ['importing', 'gone'], f'node {node}: {out.read_text()}'
+    # (Killed while the node's module still imports.)
+    assert _launcher_killed(tmp_path, SLOW_LAUNCHER, 'importing') == ['importing', 'gone']
 
 
 def test_a_launcher_variable_inherited_from_further_up_is_ignored():
