@@ -10,6 +10,7 @@ from rosstack import make_pose, running_stack, settles_at
 from rosstack import send_goal as send
 
 from picking_common.actions import ActionClient
+from picking_common.status import status_values
 
 APPLE = [0.55, 0.15, 0.35]
 
@@ -35,6 +36,7 @@ def stamped(xyz):
 @pytest.mark.load
 def test_a_pick_succeeds_through_its_phases(arm):
     client, actions = arm
+    since = client.mark()
     handle, feedback = send(client, actions['pick'], Pick.Goal(target=stamped(APPLE)))
     done = result(client, handle)
     assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
@@ -44,8 +46,12 @@ def test_a_pick_succeeds_through_its_phases(arm):
         assert any(phase in p for p in phases), (sorted(set(phases)), len(feedback), feedback[-1].time_left)
     lefts = [f.time_left for f in feedback if f.time_left > 0]
     assert lefts == sorted(lefts, reverse=True)
-    # The controller's tracking error, as it saw it: within its path tolerance (0.1 rad), or the pick had failed.
-    assert 0.0 < max(f.tracking_error for f in feedback) < 0.1
+    # The feedback reports a tracking error: the reference now against the newest measured state, which a stalled
+    # simulator leaves behind (seen at 0.13 rad on a loaded machine). The controller's own, each measured state against
+    # the command of its instant, stayed within its path tolerance (0.1 rad), or the pick had failed.
+    assert max(f.tracking_error for f in feedback) > 0.0
+    reached = status_values(client.controller_event(since, 'goal reached'))
+    assert 0.0 < float(reached['max_tracking_error']) < 0.1, reached
 
 
 def test_an_unreachable_goal_is_refused_with_the_reason(arm):
