@@ -63,14 +63,12 @@ class AimHolds(ValueError):
 class Follow:
     """A pick's apple in motion: ``predict(t)`` is ``(mean, cov)`` of its centre at time ``t``; ``width``
     m; ``closes_at`` when the pick's last plan closes the fingers (None before one); times on the clock the apple's
-    places are stamped with (the ROS clock), s; ``holding`` while the pick waits at the stand-off for a sure aim;
-    ``riding`` when the pick's running plan rides the apple (see :func:`aim`)."""
+    places are stamped with (the ROS clock), s; ``holding`` while the pick waits at the stand-off for a sure aim."""
 
     predict: Callable
     width: float = APPLE_WIDTH
     closes_at: float | None = None
     holding: bool = False
-    riding: bool = False
 
     def reach(self, centre, t, horizon=SWAY_WATCH):
         """``(extent, speed)``: how far the apple strays from ``centre`` (3,), m, and its fastest, m/s, over
@@ -104,16 +102,15 @@ class Aim:
     cov: np.ndarray
 
 
-def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None, keeps_ride=False):
+def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None):
     """The pick of an apple ``width`` m wide aimed where it will be: ``plan_to(T, approach_time)`` plans the cycle to
     grasp pose ``T`` with the move to P1 lasting at least ``approach_time`` s (None: as quick as it can);
     ``predict(s)`` is ``(mean, cov)`` of the apple's centre ``s`` s into the plan; ``rotation`` (3, 3) the grasp's;
     ``at`` s into the plan, the closing instant to keep (the last aim's; None: the soonest); ``ride(plan, motion,
     closes)`` (:meth:`~picking_core.pick_cycle.PickCycle.ride`), when given, makes the aimed plan's straight
     approach follow the predicted motion. None when no plan closes within ``slip`` s after ``at``, or when that plan
-    could not ride within the joints' limits, the apple would run into its straight approach (:data:`OVERSHOOT`) and
-    the running plan rides it (``keeps_ride``): the aim holds, the running plan kept. Raises what ``plan_to``
-    raises."""
+    could not ride within the joints' limits and the apple would run into its straight approach (:data:`OVERSHOOT`):
+    the aim holds, the running plan kept. Raises what ``plan_to`` raises."""
     soonest = at is None
     if soonest:
         at = closing_time(plan_to(grasp_pose(rotation, predict(0.0)[0]), None), width)
@@ -132,7 +129,7 @@ def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None, keeps_
     mean, cov = predict(closes)                     # where the apple will be when these fingers close
     if ride is not None:
         plan = ride(plan, lambda s: predict(s)[0], closes)
-        if plan.extra['rides'] is False and plan.extra['overshoot'] > OVERSHOOT and keeps_ride and not soonest:
+        if plan.extra['rides'] is False and plan.extra['overshoot'] > OVERSHOOT and not soonest:
             return None
     return Aim(plan, T, closes, np.asarray(mean, float), np.asarray(cov, float))
 
@@ -177,12 +174,12 @@ def holds_off(a, holding=False, begins=None):
     return (holding or begins <= DECIDE) and not sure(a)
 
 
-def decide(plan_to, predict, rotation, width, at=None, holding=False, ride=None, keeps_ride=False):
+def decide(plan_to, predict, rotation, width, at=None, holding=False, ride=None):
     """A pick's next plan as :func:`aim` makes it (same arguments; ``holding`` as :func:`holds_off` takes it):
     ``(aim, holds)``, the aim and whether the pick goes to the stand-off instead; None when the running plan keeps
     its aim. When no new plan keeps the closing instant, the running plan closes by the prediction all the same: the
     soonest aim from here says whether it is still sure enough to close on (else the pick holds off)."""
-    aimed = aim(plan_to, predict, rotation, width, at, ride=ride, keeps_ride=keeps_ride)
+    aimed = aim(plan_to, predict, rotation, width, at, ride=ride)
     if aimed is not None:
         return aimed, holds_off(aimed, holding)
     soonest = aim(plan_to, predict, rotation, width)

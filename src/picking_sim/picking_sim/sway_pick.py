@@ -117,8 +117,7 @@ def pick_swaying(cycle, samples, world, index, rotation, mode, rate=30.0, latenc
                 return z, R
         if mode == 'predicted':
             decided = decide(plan_to, predict, rotation, width, at, hold_since is not None,
-                             cycle.ride if riding else None,
-                             keeps_ride=bool(schedule) and schedule[-1][1].extra.get('rides') is True)
+                             cycle.ride if riding else None)
         else:
             aimed = aim(plan_to, predict, rotation, width, at)
             decided = None if aimed is None else (aimed, False)

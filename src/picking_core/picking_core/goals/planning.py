@@ -82,7 +82,7 @@ class GoalPlanner:
                               from_here=follow.holding, rides=True)
         at = None if follow.closes_at is None else follow.closes_at - t0
         decided = decide(plan_to, lambda s: follow.predict(t0 + s), target.pose[:3, :3], follow.width, at,
-                         follow.holding, cycle.ride, keeps_ride=follow.riding)
+                         follow.holding, cycle.ride)
         if decided is None:
             raise AimHolds('no new plan closes the fingers on time: the running plan keeps its aim')
         aimed, holds = decided

@@ -235,9 +235,7 @@ class GoalRunner:
         if motion is None or (motion.frequency <= 0.0 and motion.span < fit.s.min_span):
             return None, None                 # too few places to tell how it moves: aimed at the latest
         # (The fingers are timed to meet the apple's width: the camera's, where it saw the apple.)
-        flight = self.lifecycle.flights.get(key)
-        riding = flight is not None and flight.planned.plan.extra.get('rides') is True
-        return Follow(fit.predict, pick.width, pick.closes, pick.holding_since is not None, riding), None
+        return Follow(fit.predict, pick.width, pick.closes, pick.holding_since is not None), None
 
     def retarget(self, pose, wall, stamp=''):
         """Move the running pose or pick goal's target to ``pose`` (4x4, base frame): planned and spliced on as
