@@ -41,10 +41,6 @@ ROUNDS = 4
 #: s: the most a new plan may put the closing off (near P1 a new plan from the moving arm needs a slower line:
 #: tenths of a second later, and the pursuit would never end).
 SLIP = 0.02
-#: m: the most a re-aim whose straight approach could not ride its apple may let the apple come nearer the wrist
-#: than where the fingers close on it, on the way in (the apple swaying along the approach meets the straight line
-#: early, and the palm pushes it off its sway); beyond it the running plan, which rides, keeps its aim.
-OVERSHOOT = 0.005
 #: m: the width a pick's fingers are timed to meet when the apple's own is not known (a typical apple's).
 APPLE_WIDTH = 0.07
 #: Standard deviations of the prediction the closing rule takes off the capture region.
@@ -108,9 +104,8 @@ def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None):
     ``predict(s)`` is ``(mean, cov)`` of the apple's centre ``s`` s into the plan; ``rotation`` (3, 3) the grasp's;
     ``at`` s into the plan, the closing instant to keep (the last aim's; None: the soonest); ``ride(plan, motion,
     closes)`` (:meth:`~picking_core.pick_cycle.PickCycle.ride`), when given, makes the aimed plan's straight
-    approach follow the predicted motion. None when no plan closes within ``slip`` s after ``at``, or when that plan
-    could not ride within the joints' limits and the apple would run into its straight approach (:data:`OVERSHOOT`):
-    the aim holds, the running plan kept. Raises what ``plan_to`` raises."""
+    approach follow the predicted motion. None when no plan closes within ``slip`` s after ``at`` (the aim holds:
+    the running plan is kept). Raises what ``plan_to`` raises."""
     soonest = at is None
     if soonest:
         at = closing_time(plan_to(grasp_pose(rotation, predict(0.0)[0]), None), width)
@@ -129,8 +124,6 @@ def aim(plan_to, predict, rotation, width, at=None, slip=SLIP, ride=None):
     mean, cov = predict(closes)                     # where the apple will be when these fingers close
     if ride is not None:
         plan = ride(plan, lambda s: predict(s)[0], closes)
-        if plan.extra['rides'] is False and plan.extra['overshoot'] > OVERSHOOT and not soonest:
-            return None
     return Aim(plan, T, closes, np.asarray(mean, float), np.asarray(cov, float))
 
 

@@ -559,15 +559,13 @@ class PickCycle:
         apple. Over the straight approach the tool takes on the apple's motion relative to where it will be at the
         closing (smoothly, from none at the line's start to all of it where the grasp begins), so the apple lies in
         the tool's frame as a still one does, and after the closing it comes back onto the plan by the lift's
-        end. The plan as it was when it has no straight approach or the apple does not move (``extra['rides']``
-        None), or when the ride would break a joint limit (False; ``extra['overshoot']`` then says how far, m, the
-        moving apple would come nearer the wrist than where the fingers close on it, along the approach, as the
-        unridden tool goes in); True when it rides."""
+        end. The plan as it was when it has no straight approach, the apple does not move, or the
+        ride would break a joint limit (its ``extra['rides']`` says which it got)."""
         start, grasp = plan.extra.get('grasp_start'), plan.extra.get('grasp_end')
         line, lift = (next((s for s in plan.segments if s.label == label), None) for label in RIDDEN[1:])
-        still = replace(plan, extra={**plan.extra, 'rides': None})
+        unchanged = replace(plan, extra={**plan.extra, 'rides': False})
         if line is None or lift is None or not line.start < start <= closes <= grasp:
-            return still
+            return unchanged
         stop = lift.start + lift.duration
         begin = max(line.start - RIDE_RAMP, 0.0)
         n = max(int(np.ceil((stop - begin) / self.planner.settings.sample_period)), 4) + 1
@@ -585,24 +583,14 @@ class PickCycle:
         back = trajectory.hermite_coeffs(zero, v, a, zero, zero, zero, stop - closes)     # (3, 6)
         offset[~before] = ((t[~before] - closes)[:, None] ** np.arange(6)) @ back.T
         if np.abs(offset).max() < 1e-6:
-            return still
+            return unchanged
         dof = self.arm.dof
         q = plan.trajectory.sample(t)[0]
         poses = self.arm.fk(q[:, :dof])
-
-        def refused():
-            # Along the approach (the tool's z), the apple's place in front of the grasp point on the way in.
-            on_line = before & (t >= line.start)
-            ahead = np.einsum('ni,ni->n', np.array([motion(s) for s in t[on_line]]) - poses[on_line, :3, 3],
-                              poses[on_line, :3, 2])
-            T = self.arm.fk(plan.trajectory.sample([closes])[0][:, :dof])[0]
-            overshoot = max(float((at - T[:3, 3]) @ T[:3, 2] - ahead.min()), 0.0) if len(ahead) else 0.0
-            return replace(plan, extra={**plan.extra, 'rides': False, 'overshoot': overshoot})
-        ridden_poses = poses.copy()
-        ridden_poses[:, :3, 3] += offset
-        q_ride, ok, _ = self.arm.ik_batch(ridden_poses, q[:, :dof])
+        poses[:, :3, 3] += offset
+        q_ride, ok, _ = self.arm.ik_batch(poses, q[:, :dof])
         if not ok.all() or np.abs(q_ride - q[:, :dof]).max() > self.planner.settings.max_joint_step:
-            return refused()
+            return unchanged
         delta = np.zeros_like(q)
         delta[1:-1, :dof] = (q_ride - q[:, :dof])[1:-1]           # (the ends are on the plan)
         parts = [trajectory.quintic_via(delta, np.diff(t))]
@@ -617,7 +605,7 @@ class PickCycle:
             self.planner.check_limits(trajectory.PiecewisePolynomial(ridden.breaks, ridden.coeffs[:, :, :dof]),
                                       'riding the apple')
         except Unreachable:
-            return refused()
+            return unchanged
         return replace(plan, trajectory=ridden, extra={**plan.extra, 'rides': True})
 
     def back_off(self, start):

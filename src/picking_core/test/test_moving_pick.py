@@ -1,8 +1,6 @@
 """A pick aimed at a moving apple: the closing instant read off the plan, the aim at the prediction for it, the
 instant kept across re-plans from the moving arm, and the approach that carries on from a moving arm."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from conftest import shipped_harvest
@@ -13,7 +11,6 @@ from picking_core.trajectory import PiecewisePolynomial
 from picking_core.moving_pick import (
     AGREE,
     DECIDE,
-    OVERSHOOT,
     Aim,
     Follow,
     aim,
@@ -159,37 +156,6 @@ def test_a_still_apple_or_a_plan_with_no_room_is_not_ridden(cycle):
     full = cycle.plan(_home(cycle), _pose(_sway(1.2)))
     kept = cycle.ride(full, _sway, closing_time(full, WIDTH))
     assert not kept.extra['rides'] and kept.trajectory is full.trajectory
-
-
-def test_a_refused_ride_says_how_far_the_apple_would_run_into_the_straight_approach(cycle):
-    """Timed to the joints' limits, a plan cannot ride: an apple swaying ±30 mm along the approach that comes toward the
-    arm during the line would pass the grasp point toward the wrist before the closing (the palm then pushes it off
-    its sway); one swaying across the approach would not."""
-    full = cycle.plan(_home(cycle), _pose(APPLE))
-    closes = closing_time(full, WIDTH)
-
-    def swaying(axis):
-        return lambda s: APPLE + 0.03 * np.eye(3)[axis] * np.sin(2 * np.pi * (s - closes))
-    along, across = (cycle.ride(full, swaying(axis), closes) for axis in (0, 1))    # the approach is along x
-    assert along.extra['rides'] is False and along.extra['overshoot'] > 0.02
-    assert across.extra['rides'] is False and across.extra['overshoot'] < 1e-3
-
-
-@pytest.mark.parametrize('overshoot, at, kept', [(4 * OVERSHOOT, 'planned', True), (OVERSHOOT / 2, 'planned', False),
-                                                 (4 * OVERSHOOT, None, False)])
-def test_a_re_aim_that_cannot_ride_an_apple_running_into_it_keeps_the_running_plan(cycle, overshoot, at, kept):
-    """A re-aim (a closing instant to keep) whose ride was refused, the apple running more than OVERSHOOT into its
-    straight approach: None, the running plan (which rides) keeps its aim. Less than that, or a first aim (nothing
-    runs to keep), is sent unridden."""
-    def swaying(s):
-        return _sway(s), np.eye(3) * 1e-6
-
-    def refused(plan, motion, closes):
-        return replace(plan, extra={**plan.extra, 'rides': False, 'overshoot': overshoot})
-    plan_to = lambda T, least: cycle.plan(_home(cycle), T, approach_time=least, rides=True)    # noqa: E731
-    first = aim(plan_to, swaying, ROTATION, WIDTH)
-    a = aim(plan_to, swaying, ROTATION, WIDTH, at=first.at if at else None, ride=refused)
-    assert (a is None) == kept
 
 
 def test_an_aimed_pick_rides_its_apple_when_asked(cycle):
