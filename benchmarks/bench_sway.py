@@ -22,8 +22,10 @@ from picking_sim.sway_pick import MODES, pick_swaying
 
 #: m: the apple, in front of the arm (the demo's).
 APPLE = np.array([0.70, 0.15, 0.65])
-#: Runs of each case (the apple's size, stem, phase and the camera's noise drawn from the seed).
+#: Runs of each case (the apple's size, stem, phase and the camera's noise drawn from the seed); the rows with goals
+#: (ours, at ±30 mm and 1 Hz) have more, so that their p95 is no single pick's.
 SEEDS = range(12)
+GOAL_SEEDS = range(48)
 #: m/s² of wind push that sways the simulator's apples about ±30 mm at 1 Hz; the sweep's cases.
 PUSH = 2.4
 SWEEP = ((0.5, 2.4, 0.0), (2.0, 2.4, 0.0), (1.0, 1.2, 0.0), (1.0, 3.6, 0.0), (1.0, 2.4, 1.0))
@@ -34,10 +36,10 @@ WATCH = 5.0
 DIRECTIONS = {'across': np.pi / 2, 'along': 0.0}
 
 
-def _runs(cycle, samples, scene, mode, frequency, push, gusts, direction, riding=True):
+def _runs(cycle, samples, scene, mode, frequency, push, gusts, direction, riding=True, seeds=SEEDS):
     rotation = Rotation.from_euler('xyz', SIDEWAYS).as_matrix()
     out, sway = [], []
-    for seed in SEEDS:
+    for seed in seeds:
         wind = Wind(amplitude=push, frequency=frequency, direction=direction, gust_rate=gusts, gust_strength=push,
                     seed=seed)
         world = fruit_world(APPLE[None], scene, seed=seed, wind=wind)
@@ -88,10 +90,11 @@ def swaying_apples():
     rows = []
     for where, direction in DIRECTIONS.items():
         for mode in MODES:
-            runs, amplitude = _runs(cycle, samples, scene, mode, 1.0, PUSH, 0.0, direction)
+            ours = mode == 'predicted'
+            runs, amplitude = _runs(cycle, samples, scene, mode, 1.0, PUSH, 0.0, direction,
+                                    seeds=GOAL_SEEDS if ours else SEEDS)
             f = _figures(runs)
             print(f'  1 Hz ±{amplitude * 1e3:.0f} mm {where}, {mode}: {f}', flush=True)
-            ours = mode == 'predicted'
             ok = f['in_box'] >= 95 and f['median'] <= 2 and f['p95'] <= 5 and f['bruised'] == 0 and \
                 f['cycle'] <= 1.15 * still['cycle']
             rows.append(['11', f'a swaying apple picked, the world\'s count (1 Hz ±{amplitude * 1e3:.0f} mm {where} the '
