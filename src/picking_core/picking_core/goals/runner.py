@@ -738,10 +738,7 @@ class GoalRunner:
         pick's closing instant)."""
         run, running = flight.displaced
         old = self.lifecycle.flights[flight.goal.key] = flight.replaces
-        # (Superseded and overtaken by ``flight``, which never ran: by nothing, unless a plan of another goal came.)
-        newer = [f for f in self.lifecycle.flights.values() if f is not old and f.sent > old.sent]
-        old.superseded = bool(newer)
-        old.overtaken = any(f.state != State.SENT for f in newer)
+        old.superseded = old.overtaken = False
         self._closes_by(old)
         if run is not None:
             # (The apples the rest's run reported in the box meanwhile are the running plan's: said once.)
