@@ -145,7 +145,7 @@ def test_make_normal_takes_a_real_time_thread_back_to_the_normal_scheduler():
     seen = {}
 
     def run():
-        seen['realtime'] = make_realtime(10, _Quiet())
+        seen['realtime'] = make_realtime(10, _Logger())
         seen['before'] = os.sched_getscheduler(0)
         make_normal()
         seen['after'] = os.sched_getscheduler(0)
@@ -155,8 +155,3 @@ def test_make_normal_takes_a_real_time_thread_back_to_the_normal_scheduler():
     if not seen['realtime']:
         pytest.skip('this machine does not let a thread run under SCHED_FIFO')
     assert (seen['before'], seen['after']) == (os.SCHED_FIFO, os.SCHED_OTHER)
-
-
-class _Quiet:
-    def warning(self, message):
-        pass
