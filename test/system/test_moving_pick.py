@@ -72,10 +72,10 @@ def test_a_pick_streamed_at_camera_rate_closes_where_the_swaying_apple_is(tmp_pa
         t = states[k].header.stamp.sec + states[k].header.stamp.nanosec * 1e-9
         tool = ARM.fk(q)
         # The apple in the fingers' capture region, as the simulator's world judges a grasp. (How near its centre
-        # the fingers close is bench row 11's; here a plan that came late and was bridged at the controller closes
-        # that much later: docs/reliability.md.)
+        # the fingers close is bench row 11's.)
         local = tool[:3, :3].T @ (swaying(t) - tool[:3, 3])
-        assert Gripper().captures(local)[0], f'the fingers closed {np.linalg.norm(local) * 1e3:.1f} mm from the apple'
+        assert Gripper().captures(local)[0], (f'the fingers closed {np.linalg.norm(local) * 1e3:.1f} mm from the apple '
+                                              f'at {t:.3f} s; the pick said:\n' + '\n'.join(v['text'] for v in said(first)))
 
 
 def test_a_pick_never_sure_where_its_apple_is_waits_at_the_stand_off_then_backs_off_without_closing(tmp_path):

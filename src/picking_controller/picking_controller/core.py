@@ -140,14 +140,16 @@ class ControllerCore:
             self._take_over(t)
         return self.schedule.state_at(t)
 
-    def trajectory_time(self, now):
+    def trajectory_time(self, now, goal=None):
         """The ``time_from_start`` of the reference at ``now`` in the running trajectory's own points (its stamp
-        and any bridge before them taken off, on the schedule's clock): where a sender's plan is. None while no
-        client's trajectory runs (holding, braking)."""
+        and any bridge before them taken off, on the schedule's clock): where a sender's plan is; negative before
+        them (a goal's trajectory ``goal`` waiting on the schedule for its start, or its bridge running). None
+        while no client's trajectory runs (holding, braking), or ``goal`` has none on the schedule."""
         active = self.schedule.active
-        if self.mode != Mode.MOVING or active is None or active.kind != 'trajectory':
+        entry = active if goal is None else next((e for e in self.schedule.entries if e.goal == goal), None)
+        if entry is None or entry.kind != 'trajectory' or (entry is active and self.mode != Mode.MOVING):
             return None
-        return (now - self.delay) - active.origin
+        return (now - self.delay) - entry.origin
 
     def feedback(self, now):
         """``(reference (q, qd, qdd), measured q, measured qd or None)`` at ``now``, or None before any

@@ -231,6 +231,9 @@ class ControllerNode(Node):
                 with self.lock:
                     self.core.gripper.release()  # a trajectory that names the gripper drives it again
         self._report([event])
+        if event.level == 'OK' and goal is not None:
+            # Its sender learns at once that the schedule has it (an accepted goal may still be refused, as late).
+            self._publish_feedback(goal)
 
     # -- the follow_joint_trajectory action ---------------------------------------------
     def _on_goal(self, request):
@@ -371,13 +374,14 @@ class ControllerNode(Node):
         self._report(events)
         return CancelResponse.ACCEPT if accepted else CancelResponse.REJECT
 
-    def _publish_feedback(self):
-        """The running goal's reference, measured state and their difference."""
+    def _publish_feedback(self, goal=None):
+        """The reference, measured state and their difference, to the running goal (or to ``goal``, whose
+        trajectory may wait on the schedule: its ``time_from_start`` is then negative)."""
         with self.lock:
-            key = self.core.goal
+            key = self.core.goal if goal is None else goal
             now = self.now()
             state = self.core.feedback(now) if key is not None else None
-            elapsed = self.core.trajectory_time(now)
+            elapsed = self.core.trajectory_time(now, goal)
         handle, _ = self._goals.get(key, (None, None))
         if not self._goals:
             self._feedback_timer.cancel()
@@ -390,7 +394,7 @@ class ControllerNode(Node):
         fb.desired.positions, fb.desired.velocities, fb.desired.accelerations = q.tolist(), qd.tolist(), qdd.tolist()
         # Where in the goal's own points the reference is: its sender sees how late stalls made it run.
         if elapsed is not None:
-            fb.desired.time_from_start = Duration(nanoseconds=max(int(elapsed * 1e9), 0)).to_msg()
+            fb.desired.time_from_start = Duration(nanoseconds=int(round(elapsed * 1e9))).to_msg()
         fb.actual.positions = q_meas.tolist()
         fb.error.positions = (q - q_meas).tolist()
         if qd_meas is not None:

@@ -308,7 +308,8 @@ def test_an_acceleration_step_between_the_points_is_limited_and_named_as_such():
 
 def test_a_stalled_tick_delays_the_schedule_instead_of_jumping_ahead():
     """A 300 ms stall: the schedule goes on 250 ms later (the first 50 ms, the stall limit, still count), the
-    entry waiting for its stamp with it; the feedback's time in the points has the delay taken off; once the
+    entry waiting for its stamp with it; the feedback's time in the points has the delay taken off (negative for the
+    waiting entry's goal); once the
     arm holds with nothing scheduled the schedule's clock is the clock again."""
     c = core()
     c.load(['a', 'b'], [2.0], [[1.0, 0.0]], [[0.0, 0.0]], [], 0.0, now=0.0)
@@ -321,6 +322,8 @@ def test_a_stalled_tick_delays_the_schedule_instead_of_jumping_ahead():
     after = c.reference(0.799)[0]
     assert np.abs(after - before).max() < 2.0 * 0.051          # within vmax of the last command, no jump
     assert c.trajectory_time(0.799) == pytest.approx(0.549)
+    assert c.trajectory_time(0.799, 'next') == pytest.approx(0.549 - 1.2)   # waiting: before its points
+    assert c.trajectory_time(0.799, 'another') is None
     (q, _, _), limited = c.command(0.799)
     assert limited == [] and q == pytest.approx(after)
     run(c, 0.8, 1.45)

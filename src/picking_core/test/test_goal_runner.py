@@ -92,8 +92,10 @@ def pose_goal(key, xyz, came=0.0, **kw):
 
 
 def accept(runner, port, k=-1):
+    """The controller accepts the k-th plan sent and says its schedule has it."""
     flight = port.sent[k][0]
     runner.on_response(flight, True, handle=object())
+    runner.scheduled(flight)
     return flight
 
 
@@ -265,6 +267,36 @@ def test_retargets_move_the_running_goal_and_the_newest_wins_while_one_is_planne
     assert port.states('g').count('succeeded') == 1 and 'aborted' not in port.states('g')
     end = port.statuses[-1]
     assert [end[f'retargets_{k}'] for k in ('received', 'spliced', 'replaced', 'refused')] == [6, 5, 1, 0]
+
+
+def test_a_retarget_waits_for_the_schedule_to_have_the_plan_before_and_never_starts_from_one_refused_late(port):
+    """A goal the controller accepted may still be refused as late (its stamp past when it came to be spliced):
+    the next re-target is planned only once the controller says its schedule has the plan before it. Planned from
+    a plan that never ran, it would not carry on from the schedule: the controller would bridge it, and it would
+    run that much later (a swaying apple's fingers closing centimetres off)."""
+    runner = GoalRunner(port, Timing(lead=0.05))
+    port.ref = ((HOME, np.zeros(6), np.zeros(6)), 0.09)
+    runner.take(pose_goal('g', [0.6, 0.1, 0.4]))
+    first = accept(runner, port)
+    port.t += 0.5
+    assert runner.retarget(pose_matrix([0.6, 0.12, 0.4], DOWN), 0.1) is None
+    late = port.sent[-1][0]
+    runner.on_response(late, True, handle=object())             # accepted; the word on its stamp still to come
+    assert runner.retarget(pose_matrix([0.6, 0.14, 0.4], DOWN), 0.2) is None
+    assert port.sent[-1][0] is late and runner.blocked()        # it waits
+    runner.on_result(late, 'aborted', OLD_HEADER_TIMESTAMP, 'it starts 0.01 s in the past')
+    again, points, stamp = port.sent[-1]
+    assert again is not late and again.start == stamp
+    state = first.planned.plan.trajectory.state_at(stamp - first.start)  # from the plan that runs
+    assert points[1][0] == pytest.approx(state[0]) and points[2][0] == pytest.approx(state[1])
+    runner.on_response(again, True, handle=object())
+    assert port.sent[-1][0] is again
+    runner.on_feedback(again, port.t, port.t - again.start, 0.0)   # waiting on the schedule for its start
+    newest, points, stamp = port.sent[-1]
+    assert newest.goal.target.pose[:3, 3] == pytest.approx([0.6, 0.14, 0.4])
+    state = again.planned.plan.trajectory.state_at(stamp - again.start)
+    assert points[1][0] == pytest.approx(state[0]) and points[2][0] == pytest.approx(state[1])
+    assert 'executing' not in port.states('g')
 
 
 def test_a_retargeted_goal_at_rest_waits_for_its_stream_then_ends(port):

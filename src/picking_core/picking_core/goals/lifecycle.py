@@ -84,6 +84,7 @@ class Flight:
     asked: float = -1e9           # wall s its result was last asked for again
     elapsed: float | None = None  # s into the plan's points, the controller's newest feedback
     handle: object = None         # the controller's goal handle, once accepted
+    scheduled: bool = False       # the controller's feedback says its schedule has the plan (it will run)
     cancel: bool = False          # its client asked to cancel it
     stopped: str = ''             # why the planner stopped it at the controller (the world changed)
     extra: dict = field(default_factory=dict)
@@ -139,9 +140,10 @@ class Lifecycle:
         return flight
 
     def unanswered(self):
-        """True while a plan waits for the controller's goal response: the next plan waits too, so that a burst
-        of goals never queues up plans at the controller (one in flight at a time)."""
-        return any(f.state == State.SENT for f in self.flights.values())
+        """True while a plan waits for the controller's word that its schedule has it (a goal accepted may still
+        be refused, as late): the next plan waits too, so that it never starts from a plan that will not run, and
+        a burst of goals never queues up plans at the controller (one in flight at a time)."""
+        return any(f.state == State.SENT or not f.scheduled for f in self.flights.values())
 
     def current(self, flight):
         """True while ``flight`` is its goal's newest plan."""
@@ -165,6 +167,7 @@ class Lifecycle:
         if not self.current(flight):
             return False
         flight.tracking_error = tracking_error
+        flight.scheduled = True
         if elapsed is not None:                   # (unknown while the controller brakes: the last word stands)
             flight.elapsed = elapsed
         first = flight.state != State.EXECUTING

@@ -599,10 +599,6 @@ class GoalRunner:
             self._not_run(flight, ending.message)
         elif self.lifecycle.current(flight):
             flight.handle = handle
-            self.running = Running(flight.planned.plan.trajectory, flight.names, flight.start, flight.serial,
-                                   self.port.goal_planner().planner.arm.dof)
-            if flight.goal.retargets:
-                self._moved(flight.goal.key, 'spliced')
             self._transition(flight, 'accepted', f"{flight.extra['method']}, {flight.duration:.3f} s" + ''.join(
                 f", {flight.extra[k]}" for k in ('approach', 'detours') if k in flight.extra),
                 latency_ms=(self.port.wall() - flight.goal.came) * 1e3)
@@ -614,9 +610,24 @@ class GoalRunner:
 
     def on_feedback(self, flight, now, elapsed, tracking_error, desired=None):
         """The controller's feedback on ``flight``'s plan: at clock time ``now`` its reference is ``elapsed`` s into
-        the plan's points, at ``desired`` (``{joint: position}``). Where the desired positions are not the plan's at
-        ``elapsed`` (the controller brakes, or runs something else), where the plan is stays unknown."""
+        the plan's points (negative before them: the plan waits on the schedule, or its bridge runs), at
+        ``desired`` (``{joint: position}``). Where the desired positions are not the plan's at ``elapsed`` (the
+        controller brakes, or runs something else), where the plan is stays unknown. Its first feedback says the
+        controller's schedule has the plan (:meth:`scheduled`)."""
         if not self.lifecycle.current(flight):
+            return
+        first_word = not flight.scheduled
+        self._scheduled(flight)
+        self._heard(flight, now, elapsed, tracking_error, desired)
+        if first_word:
+            self._serve_waiting()                     # a plan that waited for this one's word
+
+    def _heard(self, flight, now, elapsed, tracking_error, desired):
+        if elapsed is not None and elapsed < 0.0:
+            # On the schedule before its points: waiting for its start, or the bridge to its first point runs.
+            if flight.start is None:
+                flight.start = now - self.timing.delay - elapsed
+                self._learnt_start(flight)
             return
         if elapsed is not None and desired is not None and not _on_plan(flight, elapsed, desired):
             elapsed = None
@@ -631,6 +642,22 @@ class GoalRunner:
         if flight.goal.feedback is not None:
             phase, left = flight.phase()
             flight.goal.feedback(phase, left, tracking_error)
+
+    def scheduled(self, flight):
+        """The controller's schedule has ``flight``'s plan: it runs as sent, and the next plan may start from it
+        (until then the next waits: an accepted goal may still be refused, as late)."""
+        if self.lifecycle.current(flight) and not flight.scheduled:
+            self._scheduled(flight)
+            self._serve_waiting()
+
+    def _scheduled(self, flight):
+        if flight.scheduled:
+            return
+        flight.scheduled = True
+        self.running = Running(flight.planned.plan.trajectory, flight.names, flight.start, flight.serial,
+                               self.port.goal_planner().planner.arm.dof)
+        if flight.goal.retargets:
+            self._moved(flight.goal.key, 'spliced')
 
     def _learnt_start(self, flight):
         if self.running is not None and self.running.key == flight.serial:
@@ -650,6 +677,8 @@ class GoalRunner:
 
     def on_result(self, flight, status, code, text):
         """The controller's result for ``flight``'s plan (``status``: 'succeeded', 'canceled' or 'aborted')."""
+        if status == 'succeeded' and self.lifecycle.current(flight):
+            self._scheduled(flight)                   # it ran, though no feedback said so
         ending = self.lifecycle.result(flight, status, code, text)
         if self.running is not None and self.running.key == flight.serial:
             self.running = replace(self.running, ended=status)
