@@ -47,6 +47,9 @@ TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
 #: s before the straight approach the tool begins to take on the apple's motion (gently: a line to the apple is
 #: timed to the joints' limits, and has no room for more).
 RIDE_RAMP = 0.5
+#: Shares of the apple's motion a ride tries to take on, the largest first: a ride that would break a joint limit
+#: with all of it (a re-aim starting close to the straight approach squeezes the ramp) takes on what the limits allow.
+RIDE_SHARES = (1.0, 0.75, 0.5, 0.25)
 #: Fraction of the planner's speed the moves of a pick that rides its apple (:meth:`PickCycle.plan` ``rides``)
 #: are planned at, the approach, the line to the apple and the lift: room in the joints' limits for its motion.
 RIDE_SPEED = 0.85
@@ -584,20 +587,29 @@ class PickCycle:
         offset[~before] = ((t[~before] - closes)[:, None] ** np.arange(6)) @ back.T
         if np.abs(offset).max() < 1e-6:
             return unchanged
-        dof = self.arm.dof
         q = plan.trajectory.sample(t)[0]
+        for share in RIDE_SHARES:
+            ridden = self._ridden(plan, t, q, share * offset)
+            if ridden is not None:
+                return replace(plan, trajectory=ridden, extra={**plan.extra, 'rides': True, 'ride_share': share})
+        return unchanged
+
+    def _ridden(self, plan, t, q, offset):
+        """``plan``'s trajectory with the tool moved by ``offset`` (n, 3) at times ``t`` (its joints ``q`` there), or
+        None where that breaks a joint limit."""
+        dof = self.arm.dof
         poses = self.arm.fk(q[:, :dof])
         poses[:, :3, 3] += offset
         q_ride, ok, _ = self.arm.ik_batch(poses, q[:, :dof])
         if not ok.all() or np.abs(q_ride - q[:, :dof]).max() > self.planner.settings.max_joint_step:
-            return unchanged
+            return None
         delta = np.zeros_like(q)
         delta[1:-1, :dof] = (q_ride - q[:, :dof])[1:-1]           # (the ends are on the plan)
         parts = [trajectory.quintic_via(delta, np.diff(t))]
-        if begin > 0.0:
-            parts.insert(0, trajectory.hold(0.0 * delta[0], begin))
-        if stop < plan.duration:
-            parts.append(trajectory.hold(0.0 * delta[0], plan.duration - stop))
+        if t[0] > 0.0:
+            parts.insert(0, trajectory.hold(0.0 * delta[0], t[0]))
+        if t[-1] < plan.duration:
+            parts.append(trajectory.hold(0.0 * delta[0], plan.duration - t[-1]))
         both = trajectory.stack([plan.trajectory, trajectory.concatenate(parts)])
         k = q.shape[1]
         ridden = trajectory.PiecewisePolynomial(both.breaks, both.coeffs[:, :, :k] + both.coeffs[:, :, k:])
@@ -605,8 +617,8 @@ class PickCycle:
             self.planner.check_limits(trajectory.PiecewisePolynomial(ridden.breaks, ridden.coeffs[:, :, :dof]),
                                       'riding the apple')
         except Unreachable:
-            return unchanged
-        return replace(plan, trajectory=ridden, extra={**plan.extra, 'rides': True})
+            return None
+        return ridden
 
     def back_off(self, start):
         """From ``start`` (q, qd, qdd; braking first if it moves) home to P0 at rest: a pick that gives up. The plan

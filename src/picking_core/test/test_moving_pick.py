@@ -158,6 +158,28 @@ def test_a_still_apple_or_a_plan_with_no_room_is_not_ridden(cycle):
     assert not kept.extra['rides'] and kept.trajectory is full.trajectory
 
 
+def test_a_ride_that_would_break_a_limit_takes_on_the_share_of_the_sway_the_limits_allow(cycle):
+    """From the stand-off the straight approach begins at once: the ride's ramp is squeezed into it, and taking on
+    all of a ±30 mm sway along the approach would break a joint limit. The ride takes on the largest share that
+    keeps them rather than none (sent unridden, the line meets an apple swinging toward the arm early)."""
+    def sway(s):
+        return APPLE + [0.03 * np.sin(2 * np.pi * s), 0.0, 0.0]
+    T = _pose(APPLE)
+    P1 = cycle.arm.ik(cycle.key_poses(T)['P1'], seed=np.asarray(cycle.s.home_positions, float))
+    planned = cycle.plan((P1, 0 * P1, 0 * P1), _pose(sway(1.0)), from_here=True, rides=True)
+    closes = closing_time(planned, WIDTH)
+    ridden = cycle.ride(planned, sway, closes)
+    share = ridden.extra['ride_share']
+    assert ridden.extra['rides'] and 0.0 < share < 1.0
+    dof = cycle.arm.dof
+    cycle.planner.check_limits(PiecewisePolynomial(ridden.trajectory.breaks, ridden.trajectory.coeffs[:, :, :dof]),
+                               'ridden')
+    t = np.linspace(planned.extra['grasp_start'], closes, 10)
+    tool, still = (cycle.arm.fk(p.trajectory.sample(t)[0][:, :dof])[:, :3, 3] for p in (ridden, planned))
+    apple = np.array([sway(s) for s in t])
+    assert np.abs((tool - still) - share * (apple - sway(closes))).max() < 1e-3
+
+
 def test_an_aimed_pick_rides_its_apple_when_asked(cycle):
     def swaying(s):
         return _sway(s), np.eye(3) * 1e-6
