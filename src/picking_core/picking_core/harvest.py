@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -247,8 +248,10 @@ class Harvest:
         def plan_to(T_aim, least):
             return self.cycle.plan(state, T_aim, gripper, from_box=chained, home_after=False, neighbours=neighbours,
                                    approach_time=least, rides=True)
+        # All of the motion or none: aimed once, from the box, the prediction looks a whole approach ahead and is
+        # never refreshed; a share of a ride on it pushed apples off rather than kept them still (docs/decisions.md).
         aimed = aim(plan_to, lambda s: follow.predict(t + s), np.asarray(T, float)[:3, :3], follow.width,
-                    ride=self.cycle.ride)
+                    ride=partial(self.cycle.ride, shares=(1.0,)))
         if not sure(aimed):
             raise Unsure(f'its sway is too unsure to close on (the fingers would miss it by '
                              f'{-closing_margin(aimed) * 1e3:.0f} mm at one deviation): left on the tree')

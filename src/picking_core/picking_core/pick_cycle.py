@@ -556,14 +556,15 @@ class PickCycle:
         the checker sees, else Blocked naming the contact."""
         return around.plan_pose(self.planner, self.checker, start, self.key_poses(T_apple)['P1'])
 
-    def ride(self, plan, motion, closes):
+    def ride(self, plan, motion, closes, shares=RIDE_SHARES):
         """``plan`` (a pick cycle's, the gripper its last joint) with the tool riding its apple's predicted motion:
         ``motion(s)`` is the apple's centre (3,) ``s`` s into the plan, ``closes`` s into it the fingers meet the
         apple. Over the straight approach the tool takes on the apple's motion relative to where it will be at the
         closing (smoothly, from none at the line's start to all of it where the grasp begins), so the apple lies in
         the tool's frame as a still one does, and after the closing it comes back onto the plan by the lift's
-        end. The plan as it was when it has no straight approach, the apple does not move, or the
-        ride would break a joint limit (its ``extra['rides']`` says which it got)."""
+        end. Where all of the motion would break a joint limit, the largest of ``shares`` that keeps them is taken
+        (``extra['ride_share']``). The plan as it was when it has no straight approach, the apple does not move, or
+        every share would break a limit (its ``extra['rides']`` says which it got)."""
         start, grasp = plan.extra.get('grasp_start'), plan.extra.get('grasp_end')
         line, lift = (next((s for s in plan.segments if s.label == label), None) for label in RIDDEN[1:])
         unchanged = replace(plan, extra={**plan.extra, 'rides': False})
@@ -588,7 +589,7 @@ class PickCycle:
         if np.abs(offset).max() < 1e-6:
             return unchanged
         q = plan.trajectory.sample(t)[0]
-        for share in RIDE_SHARES:
+        for share in shares:
             ridden = self._ridden(plan, t, q, share * offset)
             if ridden is not None:
                 return replace(plan, trajectory=ridden, extra={**plan.extra, 'rides': True, 'ride_share': share})
