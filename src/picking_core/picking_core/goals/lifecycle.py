@@ -145,6 +145,12 @@ class Lifecycle:
         a burst of goals never queues up plans at the controller (one in flight at a time)."""
         return any(f.state == State.SENT or not f.scheduled for f in self.flights.values())
 
+    def scheduled(self, flight):
+        """The controller's word that its schedule has ``flight``'s plan: True the first time."""
+        first = not flight.scheduled
+        flight.scheduled = True
+        return first
+
     def current(self, flight):
         """True while ``flight`` is its goal's newest plan."""
         return self.flights.get(flight.goal.key) is flight
@@ -167,7 +173,7 @@ class Lifecycle:
         if not self.current(flight):
             return False
         flight.tracking_error = tracking_error
-        flight.scheduled = True
+        self.scheduled(flight)
         if elapsed is not None:                   # (unknown while the controller brakes: the last word stands)
             flight.elapsed = elapsed
         first = flight.state != State.EXECUTING

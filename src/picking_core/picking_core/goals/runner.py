@@ -616,8 +616,7 @@ class GoalRunner:
         controller's schedule has the plan (:meth:`scheduled`)."""
         if not self.lifecycle.current(flight):
             return
-        first_word = not flight.scheduled
-        self._scheduled(flight)
+        first_word = self._scheduled(flight)
         self._heard(flight, now, elapsed, tracking_error, desired)
         if first_word:
             self._serve_waiting()                     # a plan that waited for this one's word
@@ -646,18 +645,18 @@ class GoalRunner:
     def scheduled(self, flight):
         """The controller's schedule has ``flight``'s plan: it runs as sent, and the next plan may start from it
         (until then the next waits: an accepted goal may still be refused, as late)."""
-        if self.lifecycle.current(flight) and not flight.scheduled:
-            self._scheduled(flight)
+        if self.lifecycle.current(flight) and self._scheduled(flight):
             self._serve_waiting()
 
     def _scheduled(self, flight):
-        if flight.scheduled:
-            return
-        flight.scheduled = True
+        """As :meth:`scheduled`, without serving the goal that waits; True the first time."""
+        if not self.lifecycle.scheduled(flight):
+            return False
         self.running = Running(flight.planned.plan.trajectory, flight.names, flight.start, flight.serial,
                                self.port.goal_planner().planner.arm.dof)
         if flight.goal.retargets:
             self._moved(flight.goal.key, 'spliced')
+        return True
 
     def _learnt_start(self, flight):
         if self.running is not None and self.running.key == flight.serial:
