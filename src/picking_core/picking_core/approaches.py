@@ -8,13 +8,16 @@ blocked. The grasp axis (the tool's z, into the apple) is tilted by up to ``appr
 direction around it, and the gripper rolled about it; each candidate is first screened cheaply (its
 approach and lift lines by IK every centimetre, checked for collisions and joint jumps), and only the
 candidates that pass are planned as whole cycles and checked densely. The quickest clear cycle among
-the first few wins; an apple with none is refused with the obstacle that blocked most candidates.
+the first few wins. Only when every grasp is blocked are they tried again with the other ways out with
+the apple (straight back along the approach, an arc up and back, straight up: a twig just above an apple
+blocks the lift, not the way in; an arc is screened along its chord). An apple with none is refused with
+the obstacle that blocked most candidates.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -36,6 +39,10 @@ MIN_SLOW, SLOW_MARGIN = 0.3, 0.9
 WINDOW_PAD = 0.1
 #: rad: the tilts tried, in steps up to the cone.
 TILT_STEP = np.radians(15.0)
+#: The ways out with the apple tried for a blocked one, after every grasp with the settings' lift (the pick
+#: cycle's LIFT_METHODS, in this order), and how they are said.
+LIFTS = ('back', 'arc', 'line')
+LIFT_WORDS = {'back': 'straight back', 'arc': 'up and back along an arc', 'line': 'straight up'}
 #: Directions of tilt around the grasp axis.
 AZIMUTHS = 8
 #: rad: the gripper's rolls about the tilted axis (the fingers' plane turned).
@@ -67,25 +74,26 @@ class BrakeBlocked(Blocked):
 class Approach:
     """A grasp pose tried: ``tilt`` of its axis from the requested one and ``roll`` about it (rad);
     ``branch``: the joints at P1 (the start of the line to the apple), None for the IK solution
-    nearest home."""
+    nearest home; ``lift``: the way out with the apple (one of the pick cycle's LIFT_METHODS), None for
+    the settings'."""
 
     pose: np.ndarray
     tilt: float
     roll: float
     branch: np.ndarray | None = None
+    lift: str | None = None
 
     def words(self):
-        if self.branch is not None:
-            return 'approached as requested on another IK branch of the arm'
-        return (f'approached {np.degrees(self.tilt):.0f}° off the requested axis, rolled '
-                f'{np.degrees(self.roll):+.0f}°')
+        out = (f'{np.degrees(self.tilt):.0f}° off the requested axis, rolled {np.degrees(self.roll):+.0f}°'
+               if self.branch is None else 'as requested on another IK branch of the arm')
+        return f'approached {out}' + ('' if self.lift is None else f', lifted out {LIFT_WORDS[self.lift]}')
 
 
 def other_branches(cycle, approach):
     """``approach`` reached on each other IK branch at its P1 within the joint limits (the one nearest
     home is the default), the nearest home first."""
     arm = cycle.arm
-    P1 = cycle.key_poses(approach.pose)['P1']
+    P1 = cycle.key_poses(approach.pose, approach.lift)['P1']
     home = np.asarray(cycle.s.home_positions, float)
     try:
         default = arm.check_reachable(P1, seed=home)
@@ -93,7 +101,7 @@ def other_branches(cycle, approach):
         return []
     sols = [q for q in arm.ik_all(P1) if arm.within_limits(q) and np.abs(q - default).max() > 1e-6]
     sols.sort(key=lambda q: float(np.abs(q - home).max()))
-    return [Approach(approach.pose, approach.tilt, approach.roll, q) for q in sols]
+    return [replace(approach, branch=q) for q in sols]
 
 
 def candidates(T, cone):
@@ -119,9 +127,10 @@ def candidates(T, cone):
 
 
 def clear_cycle(cycle, plan_one, T_apple, neighbours=None):
-    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch, slow)`` plans
+    """The quickest clear cycle for the apple at ``T_apple``: ``plan_one(T, detours, branch, slow, lift)`` plans
     the cycle for a grasp pose (``branch``: the joints at its P1, None for the default; ``slow``: joint moves
-    slowed, see :meth:`~picking_core.pick_cycle.PickCycle._plan`); ``cycle``
+    slowed, see :meth:`~picking_core.pick_cycle.PickCycle._plan`; ``lift``: the way out, None for the
+    settings'); ``cycle``
     (:class:`~picking_core.pick_cycle.PickCycle`) gives the settings, the arm and the checker;
     ``neighbours``: the apples not picked, passed slowly (:func:`clear_plan`).
     Raises :class:`Blocked` (or Unreachable) with the reason."""
@@ -149,12 +158,15 @@ def clear_cycle(cycle, plan_one, T_apple, neighbours=None):
     if s.approach_cone > 0.0:
         kinematic = first is not None and not isinstance(first, Blocked)
         tries.insert(len(tries) if kinematic else 0, candidates(T_apple, s.approach_cone)[1:])
+    # Last, the other ways out with the apple, for every grasp: a twig above it blocks the lift, not the approach.
+    grasps = candidates(T_apple, s.approach_cone) if s.approach_cone > 0.0 else [requested]
+    tries += [[replace(a, lift=lift) for a in grasps] for lift in LIFTS if lift != s.lift_method]
     for approaches in tries:
         passed, blocked = screen(cycle, approaches, allowed, enough=MAX_CYCLES)
         screened_out += blocked
         for approach in passed[:MAX_CYCLES]:
             def make(detours=None, slow=None, a=approach):
-                return plan_one(a.pose, detours, a.branch, slow)
+                return plan_one(a.pose, detours, a.branch, slow, a.lift)
             try:
                 plan, contact = clear_plan(cycle, make, allowed, neighbours)
             except Unreachable:
@@ -382,7 +394,7 @@ def screen(cycle, approaches, allowed, enough=None):
     if not approaches:
         return [], []
     home = np.asarray(cycle.s.home_positions, float)
-    keys = [cycle.key_poses(a.pose) for a in approaches]
+    keys = [cycle.key_poses(a.pose, a.lift) for a in approaches]
     P1, P2, P3 = (np.array([k[name] for k in keys]) for name in ('P1', 'P2', 'P3'))
     q1, ok1, _ = arm.ik_batch(P1, home)
     for c, a in enumerate(approaches):

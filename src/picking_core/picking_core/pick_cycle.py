@@ -40,7 +40,7 @@ GRIPPER_JOINT = 'gripper_joint'
 def gripper_column(arm):
     """The name of a plan's finger-opening column: the arm's gripper joint, else :data:`GRIPPER_JOINT`."""
     return arm.gripper_joint or GRIPPER_JOINT
-LIFT_METHODS = ('line', 'arc')
+LIFT_METHODS = ('line', 'arc', 'back')
 #: With ``blend``: the speeds tried where a joint move meets a line, as fractions of the line's fastest.
 BLEND_SPEEDS = (0.0, 0.3, 0.6, 0.9)
 TRANSFER_METHODS = ('via_lspb', 'quintic_via', 'optimal')
@@ -69,10 +69,11 @@ class PickSettings:
     approach_distance : float
         P1 lies this far back from the apple along the tool's z axis, m.
     lift_height : float
-        P3 lies this far above the apple, m.
+        P3 lies this far above the apple (``back``: this far back from it), m.
     lift_method : str
-        ``line`` (straight up) or ``arc`` (up and back along a quarter-arc: twists the
-        stem less).
+        ``line`` (straight up), ``arc`` (up and back along a quarter-arc: twists the
+        stem less) or ``back`` (straight back out along the approach: the way out
+        from under a twig above the apple).
     approach_method : str
         Joint-space profile of the moves to P0 and P1: ``lspb`` (the paper's linear
         segments with parabolic blends, the fastest of the paper's profiles),
@@ -259,6 +260,22 @@ _PLACE_TURNS = Rotation.from_euler('z', np.radians(np.arange(-180, 180, 30))[:, 
 _PLACE_TURNS.flags.writeable = False
 
 
+def _level_back(T):
+    """The level unit vector back along pose ``T``'s z (zero for a vertical z)."""
+    back = -T[:3, 2] * np.array([1.0, 1.0, 0.0])
+    return back / max(np.linalg.norm(back), 1e-9)
+
+
+def _lift_end(T, lift, height):
+    """Where ``lift`` from the grasp pose ``T`` ends, ``height`` m up (``line``), back along the grasp axis
+    (``back``), or both, back level (``arc``)."""
+    if lift == 'back':
+        return _offset(T, [0.0, 0.0, -height])
+    end = T.copy()
+    end[:3, 3] += height * ((_level_back(T) if lift == 'arc' else 0.0) + np.array([0.0, 0.0, 1.0]))
+    return end
+
+
 def _offset(T, local):
     """Pose ``T`` moved by ``local`` in its own frame."""
     out = T.copy()
@@ -278,6 +295,7 @@ class _Draft:
     detours: dict
     q1: np.ndarray
     q4: np.ndarray
+    lift: str = 'line'
     slow: dict = field(default_factory=dict)
     q_apple: np.ndarray = None
     q_top: np.ndarray = None
@@ -304,13 +322,13 @@ class PickCycle:
         self.checker = checker
         self._slowed = {}
 
-    def key_poses(self, T_apple):
-        """P1..P5 as 4x4 poses (P0 is a joint configuration)."""
+    def key_poses(self, T_apple, lift=None):
+        """P1..P5 as 4x4 poses (P0 is a joint configuration); P3 where ``lift`` (one of :data:`LIFT_METHODS`;
+        None: the settings') ends."""
         s = self.s
         P2 = np.asarray(T_apple, float)
         P1 = _offset(P2, [0.0, 0.0, -s.approach_distance])
-        P3 = P2.copy()
-        P3[2, 3] += s.lift_height
+        P3 = _lift_end(P2, lift or s.lift_method, s.lift_height)
         P5 = np.eye(4)
         P5[:3, :3] = _rpy_matrix(tuple(s.place_orientation_rpy))
         P5[:3, 3] = s.box_position
@@ -339,18 +357,19 @@ class PickCycle:
         approach and its line are planned at :data:`RIDE_SPEED`, room for :meth:`ride` on a moving apple.
         """
         return approaches.clear_cycle(
-            self, lambda T, detours=None, branch=None, slow=None: self._plan(
+            self, lambda T, detours=None, branch=None, slow=None, lift=None: self._plan(
                 start, T, gripper_start, from_box, home_after, detours, branch, slow, approach_time, from_here,
-                rides),
+                rides, lift),
             T_apple, neighbours)
 
     def _plan(self, start, T_apple, gripper_start, from_box, home_after, detours=None, branch=None, slow=None,
-              approach_time=None, from_here=False, rides=False):
+              approach_time=None, from_here=False, rides=False, lift=None):
         """The cycle for the grasp pose ``T_apple`` as requested (:meth:`plan`); ``detours`` maps the
         label of a joint move (:data:`~picking_core.approaches.DETOURS`) to joint waypoints it passes through on its way
         (a collision-free path around an obstacle); ``branch``: the joints at P1 (another IK solution
         than the one nearest home); ``slow`` maps the label of a joint move to the fraction of the planner's
-        speed it runs at (past apples it would bruise). The steps of Table 1 in order."""
+        speed it runs at (past apples it would bruise); ``lift``: the way out with the apple (one of
+        :data:`LIFT_METHODS`; None: the settings'). The steps of Table 1 in order."""
         start = self.planner.check_start(start)
         if self.s.blend and (self.planner.settings.cartesian_profile != 'optimal' or self.planner.settings.duration):
             raise ValueError('blend needs the planner\'s cartesian_profile optimal and no fixed duration (lines '
@@ -358,7 +377,7 @@ class PickCycle:
         if rides:
             # (Timed to the limits, the approach and its line would leave no room for the apple's motion on top.)
             slow = {**{label: approaches.Slowed(RIDE_SPEED) for label in RIDDEN}, **(slow or {})}
-        d = self._knots(T_apple, branch, detours or {})
+        d = self._knots(T_apple, branch, detours or {}, lift)
         d.slow = dict(slow or {})
         d.approach_time = approach_time
         rise_line = None
@@ -368,7 +387,7 @@ class PickCycle:
                 self._reach_apple(d, None)
             except Unreachable:
                 # (The move from the moving arm would cross a limit: it brakes and goes home first, as before.)
-                d = self._knots(T_apple, branch, detours or {})
+                d = self._knots(T_apple, branch, detours or {}, lift)
                 d.slow, d.approach_time = dict(slow or {}), approach_time
         if d.flying is None:
             rise_line = self._leave_start(d, start, from_box)
@@ -385,11 +404,11 @@ class PickCycle:
                 d.add(*part)
         return self._with_gripper(d.parts, d.cart, gripper_start)
 
-    def _knots(self, T_apple, branch, detours):
+    def _knots(self, T_apple, branch, detours, lift=None):
         """Step C first: the knot poses P1-P5 and their joints, every one reachable before anything moves (P4
         and P5 may turn about the vertical with ``place_yaw_free``); the blend points near P1 and P4."""
         s, arm = self.s, self.arm
-        poses = self.key_poses(T_apple)
+        poses = self.key_poses(T_apple, lift)
         home = np.asarray(s.home_positions, float)
         q, seed = {}, home
         for name in ('P1', 'P2', 'P3', 'P4', 'P5'):
@@ -410,7 +429,7 @@ class PickCycle:
         q1 = q['P1'] if r == 0.0 else self._ik_toward('P1', poses['P1'], poses['P2'], r, q['P1'])
         q4 = q['P4'] if r_box == 0.0 else self._ik_toward('P4', poses['P4'], poses['P5'], r_box, q['P4'],
                                                           'box_blend_radius')
-        return _Draft(poses, q, home, detours, q1, q4)
+        return _Draft(poses, q, home, detours, q1, q4, lift or s.lift_method)
 
     @property
     def _speeds(self):
@@ -497,16 +516,18 @@ class PickCycle:
     def _carry_to_box(self, d):
         """P3, the lift that detaches the apple, flowing into the transfer to P4, and P5, the line into the box."""
         s, pl, arm = self.s, self.planner, self.arm
-        d.q_top = None if s.blend_radius == 0.0 else self._top(d.q_apple, d.poses)  # the corner at P3
+        d.q_top = None if s.blend_radius == 0.0 else self._top(d.q_apple, d.poses, d.lift)  # the corner at P3
         lifter = self._mover(d, 'P3 lift and detach')
+
+        def lifted(f, rest=None):
+            return self._lift(d.q_apple, d.poses, f, rest, lifter, d.lift)
         # The lift flows into the transfer (stopping at P4 for this choice; without blends there is no
         # choice to make, and the transfer is planned once, below) ...
         if s.blend:
-            _, (lift, path) = self._quickest(self._speeds, lambda f, rest: self._lift(d.q_apple, d.poses, f, rest, lifter),
-                                             lambda ln: self._transfer(d, ln))
+            _, (lift, path) = self._quickest(self._speeds, lifted, lambda ln: self._transfer(d, ln))
         else:
-            lift, path = self._lift(d.q_apple, d.poses, 0.0, None, lifter)
-        d.add('P3 lift and detach', s.lift_method, lift, path)
+            lift, path = lifted(0.0)
+        d.add('P3 lift and detach', d.lift, lift, path)
         # ... and the transfer into the line into the box.
         moved, (line, path) = self._quickest(
             self._speeds, lambda f, rest: pl.line(d.q4, arm.fk(d.q4), d.poses['P5'], (f, 0.0), rest),
@@ -700,14 +721,14 @@ class PickCycle:
                 best = (move, line)
         return best
 
-    def _lift(self, q_apple, poses, speed, rest=None, planner=None):
-        """The lift from the apple to P3 (a line, or an arc that also pulls back), leaving P3
+    def _lift(self, q_apple, poses, speed, rest=None, planner=None, lift='line'):
+        """The lift from the apple to P3 (``lift``: a line up or back, or an arc that also pulls back), leaving P3
         at ``speed`` (a fraction of its fastest; ``rest``: its path from rest to rest), planned by ``planner`` (None:
         the cycle's).
 
         With a blend radius the lift ends that far before its end (along the line or the arc)."""
         pl, r = planner or self.planner, self.s.blend_radius
-        T2, mid, end = self._lift_poses(q_apple, poses)
+        T2, mid, end = self._lift_poses(q_apple, poses, lift)
         if mid is None:
             return pl.line(q_apple, T2, end if r == 0.0 else _toward(end, T2, r), (0.0, speed), rest)
         if r > 0.0:
@@ -717,24 +738,20 @@ class PickCycle:
             end[:3, 3] = arc.at(arc.length - r)[0]
         return pl.arc(q_apple, T2, mid, end, (0.0, speed), rest)
 
-    def _lift_poses(self, q_apple, poses):
-        """``(start, through, end)`` of the whole lift: the tool at the apple, the arc's middle
+    def _lift_poses(self, q_apple, poses, lift):
+        """``(start, through, end)`` of the whole ``lift``: the tool at the apple, the arc's middle
         (None for a line) and its end (P3 for a line)."""
         s = self.s
         T2 = self.arm.fk(q_apple)
-        if s.lift_method == 'line':
+        if lift != 'arc':
             return T2, None, poses['P3']
-        back = T2[:3, 2] * np.array([1.0, 1.0, 0.0])
-        back = -back / max(np.linalg.norm(back), 1e-9) * s.lift_height
         mid = T2.copy()
-        mid[:3, 3] += (1 - np.sqrt(0.5)) * back + np.sqrt(0.5) * np.array([0, 0, s.lift_height])
-        end = T2.copy()
-        end[:3, 3] += back + np.array([0, 0, s.lift_height])
-        return T2, mid, end
+        mid[:3, 3] += s.lift_height * ((1 - np.sqrt(0.5)) * _level_back(T2) + np.sqrt(0.5) * np.array([0, 0, 1.0]))
+        return T2, mid, _lift_end(T2, 'arc', s.lift_height)
 
-    def _top(self, q_apple, poses):
-        """The joints at the end of the whole lift (where the transfer would start without a blend radius)."""
-        return self.arm.check_reachable(self._lift_poses(q_apple, poses)[2], seed=q_apple)
+    def _top(self, q_apple, poses, lift):
+        """The joints at the end of the whole ``lift`` (where the transfer would start without a blend radius)."""
+        return self.arm.check_reachable(self._lift_poses(q_apple, poses, lift)[2], seed=q_apple)
 
     def _ik_toward(self, name, T_from, T_to, distance, seed, setting='blend_radius'):
         """The joints where the tool is ``distance`` m from ``T_from`` (the knot point ``name``) on the

@@ -172,6 +172,32 @@ def test_a_branch_across_the_straight_approach_is_passed_from_another_direction(
     np.testing.assert_allclose(cycle.arm.fk(q_grasp)[:3, 3], a, atol=1e-4)
 
 
+def test_a_twig_just_above_the_apple_is_passed_by_pulling_the_apple_straight_back_out(cycle, caps):
+    """On the branch scenario's tree (seed 1) a twig hung in front of a higher apple lies just above apple 1: the
+    way in is clear, but the lift straight up meets the twig at every grasp of the cone. The apple is pulled
+    straight back out along the approach instead, and the plan says so."""
+    from conftest import shipped_orchard
+    tree = shipped_orchard(12, seed=1)
+    T = tree.apples[1]
+    a = T[:3, 3]
+    checker = CollisionChecker(caps, tree.scene)
+    start = (HOME, 0 * HOME, 0 * HOME)
+    pick = PickCycle(cycle.planner, cycle.s, checker)
+    as_set = pick._plan(start, T, None, False, True)             # the settings' lift: straight up
+    assert 'twig' in str(checker.check(as_set.trajectory, Allowed(a, cycle.s.apple_region)))
+    plan = pick.plan(start, T)
+    assert plan.extra['approach'].endswith('lifted out straight back')
+    lift = next(x for x in plan.segments if x.label == 'P3 lift and detach')
+    assert lift.method == 'back'
+    assert checker.check(plan.trajectory, Allowed(a, cycle.s.apple_region)) is None
+    # Out along the grasp axis (short of P3 by the blend radius, where the transfer takes over).
+    grasp = cycle.arm.fk(plan.trajectory.sample([plan.extra['grasp_start']])[0][0, :6])
+    top = cycle.arm.fk(plan.trajectory.sample([lift.start + lift.duration])[0][0, :6])
+    out = grasp[:3, 3] - top[:3, 3]
+    assert np.linalg.norm(np.cross(out, grasp[:3, 2])) < 1e-3
+    assert out @ grasp[:3, 2] > cycle.s.lift_height - cycle.s.blend_radius - 1e-3
+
+
 def test_an_apple_enclosed_by_the_canopy_is_refused_with_what_blocks_it(cycle, caps):
     T = apple()
     rng = np.random.default_rng(1)
@@ -188,10 +214,10 @@ def test_an_approach_out_of_reach_is_replaced_by_one_within_the_cone(cycle):
     T = apple()
     pick = PickCycle(cycle.planner, cycle.s)
 
-    def plan_one(pose, detours=None, branch=None, slow=None):
+    def plan_one(pose, detours=None, branch=None, slow=None, lift=None):
         if np.allclose(pose, T):
             raise Unreachable('path fails at t = 0.244 s: wrist_3_joint would jump 0.363 rad')
-        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours, branch, slow)
+        return pick._plan((HOME, 0 * HOME, 0 * HOME), pose, None, False, True, detours, branch, slow, lift=lift)
     plan = approaches.clear_cycle(pick, plan_one, T)
     assert plan.extra['approach_tilt'] > 0.0 or plan.extra['approach_roll'] != 0.0
     narrow = PickCycle(cycle.planner, dataclasses.replace(cycle.s, approach_cone=0.0))

@@ -253,7 +253,8 @@ def test_pick_cycle(arm, p, values):
 
 ROUNDED = st.fixed_dictionaries({'blend_radius': st.floats(0.0, 0.06), 'lift_height': st.floats(0.01, 0.12),
                                  'approach_distance': st.floats(0.01, 0.15), 'box_drop_height': st.floats(0.01, 0.2),
-                                 'box_blend_radius': st.floats(0.0, 0.2), 'lift_method': st.sampled_from(['line', 'arc'])})
+                                 'box_blend_radius': st.floats(0.0, 0.2),
+                                 'lift_method': st.sampled_from(['line', 'arc', 'back'])})
 
 
 @settings(max_examples=60)          # a blended cycle takes about 0.1 s to plan: 60 even in the long profile

@@ -57,8 +57,9 @@ _TEXT = {
     'limit_jerk': ('keep the jerk limits too: lines, arcs and quintics stretched, cubic and LSPB moves refused', '',
                    None),
     'approach_distance': ('P1 lies this far back from the apple along the tool z axis', 'm', (0.001, 1.0)),
-    'lift_height': ('P3 lies this far above the apple', 'm', (0.001, 1.0)),
-    'lift_method': ('the lift: line (straight up) or arc (up and back along a quarter arc)', '', None),
+    'lift_height': ('P3 lies this far above the apple (lift_method back: this far back from it)', 'm', (0.001, 1.0)),
+    'lift_method': ('the lift: line (straight up), arc (up and back along a quarter arc) or back (straight back '
+                    'along the approach); a blocked apple tries the others', '', None),
     'approach_method': ('joint-space moves to P0 and P1: lspb, quintic, cubic or optimal', '', None),
     'grasp_time': ('dwell while the gripper closes', 's', (0.001, 60.0)),
     'release_time': ('dwell while the gripper opens', 's', (0.001, 60.0)),
