@@ -16,7 +16,7 @@ from rclpy.signals import SignalHandlerOptions
 from .loop import make_normal
 from .middleware import use_fast_discovery
 from .startup import LAUNCHER_PID, launcher_check
-from .topics import destroy_latest
+from .topics import destroy_latest, quiet_event_handlers
 
 #: s a node may take to stop once asked (its launcher kills it some seconds later).
 STOP_LIMIT = 6.0
@@ -79,6 +79,7 @@ def run_node(make_node, args=None, help=None):
         # One executor thread: rclpy's multi-threaded executor costs far more per
         # callback, and each node's real-time loop runs in a thread of its own.
         executor = SingleThreadedExecutor()
+        quiet_event_handlers(node)
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)

@@ -102,7 +102,25 @@ class LatestMessage:
         self.sub = None
 
 
+def quiet_event_handlers(node):
+    """Take ``node``'s QoS event handlers out of its executor's wait set (:func:`destroy_latest` puts them back
+    before the node is destroyed, which expects them there).
+
+    rclpy gives every publisher and subscription two, the incompatible-QoS and incompatible-type notices, and its
+    executor adds each to its wait set and asks whether it is ready, in Python, on every wake: a node with a dozen
+    topics spent more of its executor's time on them than on the callbacks that wake it, and the wait for them
+    delayed every message. A mismatch is still reported by the node on the other side of it."""
+    from rclpy.event_handler import EventHandler
+    handlers = [w for w in node.waitables if isinstance(w, EventHandler)]
+    for handler in handlers:
+        node.remove_waitable(handler)
+    node.__dict__.setdefault('_quiet_handlers', []).extend(handlers)
+
+
 def destroy_latest(node):
-    """Destroy every :class:`LatestMessage` of ``node`` not yet destroyed (before ``node.destroy_node()``)."""
+    """Destroy every :class:`LatestMessage` of ``node`` not yet destroyed, and put back its quiet event handlers
+    (:func:`quiet_event_handlers`), before ``node.destroy_node()``."""
     for latest in node.__dict__.get('_latest_messages', ()):
         latest.destroy()
+    for handler in node.__dict__.pop('_quiet_handlers', ()):
+        node.add_waitable(handler)

@@ -46,8 +46,10 @@ from picking_description import default_urdf
 from .core import ControllerCore, ErrorCode, Event, Mode, Outcome, Tolerances
 from .parameters import PARAMS, RUNTIME
 
-#: s an ended goal's result is kept for its client.
-RESULT_TIMEOUT = 5
+#: s an ended goal's result is kept for its client: past the planner's first ask again (RESULT_RETRY after a plan's
+#: end). Every goal kept is in every goal status message, which each client reads whole, in Python: a stream of
+#: re-targets at 30 Hz keeps this many seconds of goals in each.
+RESULT_TIMEOUT = 2
 #: Hz of controller_state (a joint trajectory controller publishes it at its update rate; this one's loop is 1 kHz).
 STATE_RATE = 100.0
 
