@@ -499,8 +499,11 @@ class HarvestRun:
         return picked + self.before.plan.picked_by(self.start - self.before.start), skipped + list(self.before.plan.skipped)
 
     def after_apple_in_hand(self, t):
-        """The earliest time from ``t`` at which the arm rests in the box with no apple in hand: the end of
-        the apple whose cycle runs at ``t`` (``t`` itself once the last apple is in the box)."""
+        """The earliest time from ``t`` at which the arm rests in the box with no apple in hand: the start of
+        this run if it took over from another there and has not begun by ``t``, else the end of the apple whose
+        cycle runs at ``t`` (``t`` itself once the last apple is in the box)."""
+        if self.before is not None and t <= self.start:
+            return self.start
         for a in self.plan.apples:
             if self.start + a.end >= t:
                 return self.start + a.end

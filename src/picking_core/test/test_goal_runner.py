@@ -811,6 +811,26 @@ def test_an_apple_seen_while_a_harvest_of_the_apples_seen_runs_joins_it_as_the_s
     assert port.statuses[-1]['state'] == 'succeeded' and port.statuses[-1]['picked'] == 3
 
 
+def test_an_apple_seen_before_a_rest_begins_joins_that_rest_from_its_own_start(port):
+    """An apple seen while a rest of the harvest waits to take over in the box joins it there, not after the rest's
+    first apple: until then the arm would pass it unknown, at full speed."""
+    runner = GoalRunner(port)
+    apples, flight = _seen_harvest(runner, port, ys=(0.15, 0.3, 0.0))
+    port.t = flight.start + 0.3 * flight.planned.harvest.apples[0].end
+    first_new, second_new = apples[0].copy(), apples[0].copy()
+    first_new[:3, 3], second_new[:3, 3] = [0.65, -0.15, 0.55], [0.62, 0.05, 0.45]
+    assert runner.seen_more([*apples, first_new]) == 1
+    rest = accept(runner, port)
+    runner.on_feedback(rest, port.t, rest.start - port.t, 0.0)       # on the schedule, waiting for its start
+    assert port.t < rest.start
+    assert runner.seen_more([*apples, first_new, second_new]) == 1
+    again, _, stamp = port.sent[-1]
+    assert again is not rest and stamp == pytest.approx(rest.start)
+    assert sorted(again.goal.target.indices) == sorted([*rest.goal.target.indices, 4])
+    q0 = again.planned.plan.trajectory.sample([0.0])[0][0]
+    assert q0 == pytest.approx(rest.planned.plan.trajectory.sample([0.0])[0][0])     # from the same rest in the box
+
+
 def test_a_harvest_of_the_apples_seen_is_aimed_again_at_its_next_swaying_apple_before_the_drop(port):
     """The apple after the one in hand sways (±20 mm at 1 Hz): shortly before the apple in hand is dropped the apples
     not started are planned again from the box, the swaying one first and aimed where it will be when the fingers

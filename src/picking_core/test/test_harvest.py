@@ -158,6 +158,10 @@ def test_a_running_harvest_reports_each_apple_once_and_sums_up_what_was_picked(f
     assert run.after_apple_in_hand(100.0 + hp.plan.duration) == 100.0 + hp.plan.duration
     run.until = 100.0 + hp.apples[2].end + REPORT_MARGIN
     assert run.summary(1e9, finished=False)['picked'] == 3
+    # A rest that took over in the box and has not begun: its own start is the soonest time with no apple in hand.
+    rest = HarvestRun(hp, 200.0, before=run)
+    assert rest.after_apple_in_hand(150.0) == 200.0
+    assert rest.after_apple_in_hand(200.0 + 0.5 * hp.apples[0].end) == pytest.approx(200.0 + hp.apples[0].end)
 
 
 def test_the_apple_in_hand_when_a_harvest_ends_early_is_the_one_whose_cycle_ran(five):

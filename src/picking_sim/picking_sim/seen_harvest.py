@@ -104,7 +104,7 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
             continue
         more = list(enumerate(new, start=max(places) + 1))
         places.update(more)
-        again = _rest(harvest, runs[-1], t + lead, places, more)
+        again = _rest(harvest, runs[-1], t + lead, places, more, took_over=len(runs) > 1)
         if again is None:
             skipped.update((i, 'seen after the last apple was in hand') for i, _ in more)
             continue
@@ -151,17 +151,21 @@ def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
         return None
 
 
-def _rest(harvest, run, soonest, places, more):
-    """``(at, HarvestPlan)``: the apples of ``run`` (``(start, HarvestPlan)``) not started by the end of the apple
-    in hand at ``soonest`` (s), and ``more`` (``(index, pose)`` pairs), planned from rest in the box there; None
-    once the last apple is in hand."""
+def _rest(harvest, run, soonest, places, more, took_over=False):
+    """``(at, HarvestPlan)``: the apples of ``run`` (``(start, HarvestPlan)``; ``took_over``: a rest, which starts
+    in the box) not started by the end of the apple in hand at ``soonest`` (s), or by the run's start if it is a
+    rest not begun by then, and ``more`` (``(index, pose)`` pairs), planned from rest in the box there; None once
+    the last apple is in hand (as the planner does: :meth:`~picking_core.harvest.HarvestRun.after_apple_in_hand`)."""
     start, plan = run
-    apple = next((a for a in plan.apples if start + a.end >= soonest), None)
-    if apple is None:
-        return None
-    at = start + apple.end
+    if took_over and soonest <= start:
+        at, in_hand = start, 0.0
+    else:
+        apple = next((a for a in plan.apples if start + a.end >= soonest), None)
+        if apple is None:
+            return None
+        at, in_hand = start + apple.end, apple.end
     left = [a.index for a in plan.apples if start + a.start >= at - 1e-9] + [i for i, _ in more]
-    q = plan.plan.trajectory.sample([apple.end])[0][0]
+    q = plan.plan.trajectory.sample([in_hand])[0][0]
     arm = q[:harvest.arm.dof]
     return at, harvest.plan((arm, 0 * arm, 0 * arm), [places[i] for i in left], gripper_start=float(q[-1]),
                             indices=left)

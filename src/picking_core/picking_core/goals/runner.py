@@ -878,7 +878,8 @@ class GoalRunner:
             self._handle(again)
 
     def _harvest_rest(self, flight, now, why, before=math.inf, more=(), keep=False):
-        """The goal of a running harvest, its apples not started by the end of the apple in hand and the apples
+        """The goal of a running harvest, its apples not started by the end of the apple in hand (or by the start of
+        a rest that has not begun) and the apples
         ``more`` (``(index, pose)`` pairs), to be planned again (``why``, in words; ``keep`` as :class:`Rest` takes
         it). None: not a harvest, the rest would take over at or after ``before`` (a schedule time: what it is
         planned around comes sooner), no apple is left, or the last apple is in hand already."""
@@ -887,7 +888,9 @@ class GoalRunner:
             return None
         at = run.after_apple_in_hand(now + self.timing.lead + 1.5 * self.timing.expected('harvest'))
         left = [a.index for a in run.plan.apples if run.start + a.start >= at - 1e-9] + [i for i, _ in more]
-        in_hand = next((a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6), None)
+        # (A run that has not begun is planned again from its own start, in the box: its plan's time 0.)
+        in_hand = 0.0 if abs(at - run.start) < 1e-6 and run.before is not None else next(
+            (a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6), None)
         if before <= at or not left or in_hand is None:
             return None
         poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses)) | dict(more)
