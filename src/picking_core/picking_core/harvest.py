@@ -498,16 +498,19 @@ class HarvestRun:
         picked, skipped = self.before._earlier()
         return picked + self.before.plan.picked_by(self.start - self.before.start), skipped + list(self.before.plan.skipped)
 
-    def after_apple_in_hand(self, t):
-        """The earliest time from ``t`` at which the arm rests in the box with no apple in hand: the start of
-        this run if it took over from another there and has not begun by ``t``, else the end of the apple whose
-        cycle runs at ``t`` (``t`` itself once the last apple is in the box)."""
+    def in_the_box_after(self, t):
+        """``(at, plan_time)``: the earliest time from ``t`` at which the arm rests in the box with no apple in
+        hand, and that time in this run's plan (s from its start): the start of this run if it took over from
+        another there and has not begun by ``t``, else the end of the apple whose cycle runs at ``t``; None once
+        the last apple is in the box."""
         if self.before is not None and t <= self.start:
-            return self.start
-        for a in self.plan.apples:
-            if self.start + a.end >= t:
-                return self.start + a.end
-        return t
+            return self.start, 0.0
+        return next(((self.start + a.end, a.end) for a in self.plan.apples if self.start + a.end >= t), None)
+
+    def after_apple_in_hand(self, t):
+        """The time of :meth:`in_the_box_after` (``t`` itself once the last apple is in the box)."""
+        found = self.in_the_box_after(t)
+        return t if found is None else found[0]
 
     def picked_by(self, t):
         """The apples in the box by ``t`` (by the plan's clock, less REPORT_MARGIN), in picking order."""

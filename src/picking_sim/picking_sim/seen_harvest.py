@@ -26,7 +26,7 @@ import numpy as np
 
 from picking_core.fruit import Fate
 from picking_core.fruit_map import FruitMap
-from picking_core.harvest import SETTLED, new_apples
+from picking_core.harvest import SETTLED, HarvestRun, new_apples
 
 from .sway_pick import arm_at
 
@@ -62,7 +62,7 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
     rest = np.append(home, harvest.cycle.s.gripper_open)
     period, latency = 1.0 / camera.settings.rate, camera.settings.latency
     pending = collections.deque()                       # (handed over at, stamp, positions, covariances, diameters, scores)
-    schedule, places, skipped, runs = [], {}, {}, []    # runs: (start, HarvestPlan) in the order they take over
+    schedule, places, skipped, runs = [], {}, {}, []    # runs: HarvestRun, in the order they take over
     seen = taken = 0
     reaimed = set()                                     # the ends of the apples in hand the rest was aimed again by
     t_prev, t, end = 0.0, 0.0, np.inf
@@ -84,7 +84,7 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
             seen = len(poses)
             places.update((i, T) for i, T in enumerate(poses))
             plan = harvest.plan((home, 0 * home, 0 * home), poses, follows=_follows(fruit_map, places, aim), t0=t)
-            schedule, runs = [(t, plan.plan)], [(t, plan)]
+            schedule, runs = [(t, plan.plan)], [HarvestRun(plan, t)]
             skipped.update((s.index, s.reason) for s in plan.skipped)
             end = t + plan.plan.duration
             continue
@@ -94,7 +94,7 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
         if again is not None:
             at, plan = again
             schedule = [(s, p) for s, p in schedule if s < at] + [(at, plan.plan)]
-            runs.append((at, plan))
+            runs.append(HarvestRun(plan, at, before=runs[-1]))
             skipped.update((s.index, s.reason) for s in plan.skipped)
             end = at + plan.plan.duration
             continue
@@ -104,14 +104,14 @@ def harvest_seen(harvest, world, samples, camera, look=1.0, step=0.01, lead=0.3,
             continue
         more = list(enumerate(new, start=max(places) + 1))
         places.update(more)
-        again = _rest(harvest, runs[-1], t + lead, places, more, took_over=len(runs) > 1)
+        again = _rest(harvest, runs[-1], t + lead, places, more)
         if again is None:
             skipped.update((i, 'seen after the last apple was in hand') for i, _ in more)
             continue
         at, plan = again
         taken += len(more)
         schedule = [(s, p) for s, p in schedule if s < at] + [(at, plan.plan)]
-        runs.append((at, plan))
+        runs.append(HarvestRun(plan, at, before=runs[-1]))
         skipped.update((s.index, s.reason) for s in plan.skipped)
         end = at + plan.plan.duration
     return SeenHarvest(world.counts(), end - schedule[0][0], seen, taken, tuple(sorted(skipped.items())),
@@ -132,7 +132,7 @@ def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
     (at ``t + lead``) is dropped within ``reaim`` s of that and the next apple sways; None otherwise, and when no
     apple of the rest can be planned (the harvest runs on as planned, as the planner's does). Each apple in hand's
     end (kept in ``reaimed``) aims the rest once."""
-    start, plan = run
+    start, plan = run.start, run.plan
     k = next((j for j, a in enumerate(plan.apples) if start + a.end >= t + lead), None)
     if k is None or k + 1 >= len(plan.apples) or start + plan.apples[k].end > t + lead + reaim:
         return None
@@ -151,19 +151,15 @@ def _reaimed(harvest, run, t, lead, reaim, places, fruit_map, reaimed):
         return None
 
 
-def _rest(harvest, run, soonest, places, more, took_over=False):
-    """``(at, HarvestPlan)``: the apples of ``run`` (``(start, HarvestPlan)``; ``took_over``: a rest, which starts
-    in the box) not started by the end of the apple in hand at ``soonest`` (s), or by the run's start if it is a
-    rest not begun by then, and ``more`` (``(index, pose)`` pairs), planned from rest in the box there; None once
-    the last apple is in hand (as the planner does: :meth:`~picking_core.harvest.HarvestRun.after_apple_in_hand`)."""
-    start, plan = run
-    if took_over and soonest <= start:
-        at, in_hand = start, 0.0
-    else:
-        apple = next((a for a in plan.apples if start + a.end >= soonest), None)
-        if apple is None:
-            return None
-        at, in_hand = start + apple.end, apple.end
+def _rest(harvest, run, soonest, places, more):
+    """``(at, HarvestPlan)``: the apples of ``run`` (a :class:`~picking_core.harvest.HarvestRun`) not started when
+    the arm next rests in the box with no apple in hand from ``soonest`` (s), as the planner's runner finds it
+    (``HarvestRun.in_the_box_after``), and ``more`` (``(index, pose)`` pairs), planned from rest in the box there;
+    None once the last apple is in hand."""
+    found = run.in_the_box_after(soonest)
+    if found is None:
+        return None
+    (at, in_hand), start, plan = found, run.start, run.plan
     left = [a.index for a in plan.apples if start + a.start >= at - 1e-9] + [i for i, _ in more]
     q = plan.plan.trajectory.sample([in_hand])[0][0]
     arm = q[:harvest.arm.dof]

@@ -529,9 +529,8 @@ class GoalRunner:
         no harvest of ours runs."""
         for key, run in reversed(list(self.harvests.items())):
             if run.start is not None and key in self.lifecycle.flights:
-                t = run.after_apple_in_hand(at)
-                apple = next((a for a in run.plan.apples if abs(run.start + a.end - t) < 1e-9), None)
-                return None if apple is None else self._in_the_box(key, t, apple.end)
+                found = run.in_the_box_after(at)
+                return None if found is None else self._in_the_box(key, *found)
         return None
 
     def _in_the_box(self, key, at, plan_time):
@@ -886,12 +885,12 @@ class GoalRunner:
         run = self.harvests.get(flight.goal.key)
         if flight.goal.kind != Kind.HARVEST or run is None or run.start is None:
             return None
-        at = run.after_apple_in_hand(now + self.timing.lead + 1.5 * self.timing.expected('harvest'))
+        found = run.in_the_box_after(now + self.timing.lead + 1.5 * self.timing.expected('harvest'))
+        if found is None:
+            return None
+        at, in_hand = found
         left = [a.index for a in run.plan.apples if run.start + a.start >= at - 1e-9] + [i for i, _ in more]
-        # (A run that has not begun is planned again from its own start, in the box: its plan's time 0.)
-        in_hand = 0.0 if abs(at - run.start) < 1e-6 and run.before is not None else next(
-            (a.end for a in run.plan.apples if abs(run.start + a.end - at) < 1e-6), None)
-        if before <= at or not left or in_hand is None:
+        if before <= at or not left:
             return None
         poses = dict(zip(flight.goal.target.indices, flight.goal.target.poses)) | dict(more)
         # (Aimed at no sway: fits frozen when the goal came, or its last aim, look too far ahead now; reaim aims.)
