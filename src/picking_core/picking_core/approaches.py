@@ -258,8 +258,9 @@ def _past_apples(cycle, make, plan, detours, allowed, neighbours):
     """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
     the ``neighbours`` faster than their speed made the quickest of: taken around the apples
     (:func:`_around_apples`), slowed only over its stretch past them (:func:`_window`) or slowed whole, until it
-    passes none fast (at most to MIN_SLOW of its speed; :func:`_slowed`). A move that none of these helps keeps its
-    path (the apple it passes may bruise)."""
+    passes none fast (at most to MIN_SLOW of its speed; :func:`_slowed`); one pressing an apple off its stem taken
+    around, else slowed. A move that none of these helps keeps its path (the apple it passes may bruise or come
+    off)."""
     checker = cycle.checker
     tried, slow = set(), {}
     while True:
@@ -271,9 +272,13 @@ def _past_apples(cycle, make, plan, detours, allowed, neighbours):
         tried.add(seg.label)
         around = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)
         ways = [] if around is None else [(around[0], slow, around[1])]
-        window = _window(cycle, plan, seg, neighbours)
-        for within in ([None] if window is None else [window, None]):
-            ways.append(_slowed(cycle, make, seg.label, touch, detours, slow, within, allowed, neighbours))
+        # No speed keeps an apple pressed from above on its stem: a move that cannot go around it is still slowed
+        # past the apples it passes fast.
+        fast = touch if not touch.stem else None if ways else \
+            _fast_touch(checker, plan, neighbours, [seg.label], pressing=False)[0]
+        window = None if fast is None else _window(cycle, plan, seg, neighbours)
+        for within in ([] if fast is None else [None] if window is None else [window, None]):
+            ways.append(_slowed(cycle, make, seg.label, fast, detours, slow, within, allowed, neighbours))
         ways = [w for w in ways if w is not None]
         if ways:
             plan, slow, detours = min(ways, key=lambda w: w[0].duration)
@@ -294,7 +299,7 @@ def _slowed(cycle, make, label, touch, detours, slow, window, allowed, neighbour
             return None
         if contact is not None:
             return None
-        still = _fast_touch(cycle.checker, again, neighbours, [label])[0]
+        still = _fast_touch(cycle.checker, again, neighbours, [label], pressing=False)[0]
         if still is None:
             return again, slower, again_detours
         touch = still
@@ -306,7 +311,7 @@ def _window(cycle, plan, seg, neighbours):
     stretch within reach of the apples (None at the move's own ends); None when that stretch is the whole move."""
     t, q = cycle.checker.samples(plan.trajectory)
     inside = np.flatnonzero((t >= seg.start) & (t <= seg.start + seg.duration))
-    near = np.flatnonzero(neighbours.touching(q[inside, :cycle.arm.dof]))
+    near = np.flatnonzero(neighbours.touching(q[inside, :cycle.arm.dof + 1]))
     if not len(near):
         return None
     t_in, t_out = t[inside[near[0]]] - WINDOW_PAD, t[inside[near[-1]]] + WINDOW_PAD
@@ -322,11 +327,18 @@ def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
     are passed as they are), twice as many of them while the timed move still cuts past an apple fast, up to
     REFINE times; None when no such path is found, or the plan made that way is not clear."""
     checker, arm = cycle.checker, cycle.arm
-    ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :arm.dof]
-    ignore = neighbours.touched_at(ends)
+    ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :arm.dof + 1]
+    # The fingers as wide as at either end of the move, all along the search (the arm's own joints come first).
+    fingers = ends[:, arm.dof:].max(axis=0)
+    ignore = neighbours.touched_at(np.column_stack([ends[:, :arm.dof], np.tile(fingers, (2, 1))]))
+    ends = ends[:, :arm.dof]
+
+    def in_the_way(x):
+        x = np.atleast_2d(x)
+        held = np.column_stack([x, np.tile(fingers, (len(x), 1))])
+        return checker.colliding(x, allowed) | neighbours.touching(held, ignore)
     try:
-        path = rrt_connect(lambda x: checker.colliding(x, allowed) | neighbours.touching(x, ignore),
-                           ends[0], ends[1], arm.lower, arm.upper, iterations=PAST_APPLES_TRIES)
+        path = rrt_connect(in_the_way, ends[0], ends[1], arm.lower, arm.upper, iterations=PAST_APPLES_TRIES)
     except NoPath:
         return None
     if len(path) <= 2:
@@ -347,20 +359,25 @@ def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
     return None
 
 
-def _fast_touch(checker, plan, neighbours, labels):
+def _fast_touch(checker, plan, neighbours, labels, pressing=True):
     """``(touch, segment)``: the first :class:`~picking_core.collision.fruit.FastTouch` of ``plan`` (at the checker's
-    samples) within its segments labelled one of ``labels``, and that segment; ``(None, None)`` without one."""
-    segments = [s for s in plan.segments if s.label in labels]
+    samples) within its segments labelled one of ``labels`` (with ``pressing``, an apple pressed off its stem
+    too, but for those a move's own ends touch: it cannot help them), and that segment; ``(None, None)`` without
+    one."""
+    segments = sorted((s for s in plan.segments if s.label in labels), key=lambda s: s.start)
     if not segments:
         return None, None
     t, q = checker.samples(plan.trajectory)
-    within = np.zeros(len(t), bool)
+    q = q[:, :checker.capsules.arm.dof + 1]
     for s in segments:
-        within |= (t >= s.start) & (t <= s.start + s.duration)
-    touch = neighbours.first_fast_touch(t, q[:, :checker.capsules.arm.dof], within)
-    if touch is None:
-        return None, None
-    return touch, next(s for s in segments if s.start <= touch.time <= s.start + s.duration)
+        inside = (t >= s.start) & (t <= s.start + s.duration)
+        if inside.sum() < 2:
+            continue
+        spare = neighbours.touched_at(q[inside][[0, -1]]) if pressing else ()
+        touch = neighbours.first_fast_touch(t[inside], q[inside], pressing=pressing, spare=spare)
+        if touch is not None:
+            return touch, s
+    return None, None
 
 
 def check(checker, plan, allowed):

@@ -42,6 +42,45 @@ MIN_CLOSURE = 0.01
 RELEASE_MARGIN = 0.005
 
 
+#: The gripper as apples feel it (tool frame, m; the URDF's visual geometry): two fingers 2 cm thick reaching
+#: 6 cm back from the grasp point along z, on either side of it along x at the opening, and the wrist body
+#: behind them, its round front 5 cm behind the grasp point where the URDF's cylinder ends (an apple held at the
+#: grasp point does not touch it). (The URDF's collision capsules bound fingers and apple coarsely: what the
+#: planner keeps clear of branches.)
+FINGER_RADIUS, FINGER_LENGTH = 0.01, 0.06
+WRIST = (np.array([0.0, 0.0, -0.15]), np.array([0.0, 0.0, -0.085]), 0.035)
+#: m between the fingers where nothing says how far they are open (as for an approach).
+OPEN = 0.09
+
+
+class ArmBodies:
+    """What of an arm touches apples: the links of ``capsules`` (an
+    :class:`~picking_core.kinematics.capsules.ArmCapsules`) before the wrist's last joint, then the gripper's wrist
+    body and two fingers at their opening (FINGER_RADIUS, FINGER_LENGTH, WRIST), with their ``radii`` and
+    ``names``. One model for the simulator's world, which judges the touches, and the planner, which keeps its
+    links off the apples still on the tree."""
+
+    def __init__(self, capsules):
+        self.capsules, self.arm = capsules, capsules.arm
+        self.keep = np.flatnonzero(capsules.frame != self.arm.dof)      # the links before the wrist's last joint
+        self.radii = np.concatenate([capsules.radius[self.keep], [WRIST[2], FINGER_RADIUS, FINGER_RADIUS]])
+        self.names = [capsules.links[k] for k in self.keep] + ['the wrist', 'a finger', 'a finger']
+
+    def __call__(self, q, openings=None):
+        """``(tools (N, 4, 4), links (N, K, 2, 3))``: the tool's poses and the bodies' segments at arm joint
+        positions ``q`` (N, dof), the fingers ``openings`` (N,) apart (None: OPEN)."""
+        q = np.atleast_2d(np.asarray(q, float))
+        tools = self.arm.joint_frames(q)[:, -1]
+        openings = np.full(len(q), OPEN) if openings is None else np.asarray(openings, float)
+        x = openings / 2 + FINGER_RADIUS
+        local = np.zeros((len(q), 3, 2, 3))                                # wrist, finger +x, finger -x
+        local[:, 0] = WRIST[:2]
+        local[:, 1, :, 0], local[:, 2, :, 0] = x[:, None], -x[:, None]
+        local[:, 1:, 0, 2] = -FINGER_LENGTH
+        gripper = np.einsum('nij,nkej->nkei', tools[:, :3, :3], local) + tools[:, None, None, :3, 3]
+        return tools, np.concatenate([self.capsules.segments(q)[:, self.keep], gripper], axis=1)
+
+
 class Fate(enum.IntEnum):
     """Where an apple is."""
 

@@ -11,7 +11,7 @@ from picking_core.collision.fruit import MARGIN, RADIUS, Neighbours
 from picking_core.harvest import Harvest
 from picking_core.moving_pick import Follow
 from picking_core.kinematics.capsules import ArmCapsules
-from picking_core.pick_cycle import PickCycle
+from picking_core.pick_cycle import HOME_POSITIONS, PickCycle
 
 #: m/s: the pass speed these tests plan with (the shipped configuration leaves it off).
 PASS = 0.8
@@ -24,13 +24,12 @@ def _cycle(seed=1, apple_pass_speed=PASS):
     return PickCycle(shipped.cycle.planner, shipped.cycle.s, checker), orchard
 
 
-def _fast_in_joint_moves(cycle, plan, neighbours):
-    t, q = cycle.checker.samples(plan.trajectory)
-    within = np.zeros(len(t), bool)
-    for s in plan.segments:
-        if s.label in DETOURS:
-            within |= (t >= s.start) & (t <= s.start + s.duration)
-    return neighbours.first_fast_touch(t, q[:, :cycle.arm.dof], within)
+def _fast_in_joint_moves(cycle, plan, neighbours, apple=None, pressing=True):
+    """The first fast touch (``pressing``: or press off a stem, which no slowing helps) in the joint moves of
+    ``plan`` (those of ``apple``'s cycle)."""
+    prefix = '' if apple is None else f'apple {apple}: '
+    labels = [f'{prefix}{label}' for label in DETOURS]
+    return approaches._fast_touch(cycle.checker, plan, neighbours, labels, pressing)[0]
 
 
 def test_a_link_touching_an_apple_counts_only_when_it_moves_faster_than_the_bruising_margin(arm):
@@ -50,6 +49,53 @@ def test_a_link_touching_an_apple_counts_only_when_it_moves_faster_than_the_brui
     assert Neighbours(caps, [], 0.8).first_fast_touch(t, q) is None
     assert slow.touching(q[:1]).all() and not slow.touching(q[:1], ignore=[0]).any()
     assert list(slow.touched_at(q[:1])) == [0]
+
+
+def _finger(neighbours, q):
+    """A finger's segment (2, 3) at ``q`` (1, dof or dof + 1) as the neighbours see it, and its radius."""
+    k = neighbours.names.index('a finger')
+    return neighbours._segments(q)[0, k], neighbours.radii[k]
+
+
+def test_a_link_pressing_an_apple_down_off_its_stem_counts_at_any_speed_but_where_the_move_rests(arm):
+    """A link that reaches into an apple from above drags it off its stem however slowly it moves; the same link
+    as deep into its side only pushes it aside (below the bruising speed, harmless)."""
+    caps = ArmCapsules.from_arm(arm)
+    q0 = np.asarray(HOME_POSITIONS, float)                               # the fingers reach out level
+    t = np.linspace(0.0, 1.0, 101)
+    q = q0 + np.outer(t, [0.1, 0, 0, 0, 0, 0])                          # the waist turns slowly
+    probe = Neighbours(caps, [[0.0, 0.0, 0.0]], 0.8)
+    finger, radius = _finger(probe, q[50:51])
+    middle = finger.mean(axis=0)
+    axis = (finger[1] - finger[0]) / np.linalg.norm(finger[1] - finger[0])
+    assert abs(axis[2]) < 0.7                                            # the finger lies across, not upright
+    down = np.array([0.0, 0.0, -1.0]) - (-axis[2]) * axis
+    down /= np.linalg.norm(down)
+    side = np.cross(axis, down)
+    deep = radius + RADIUS - 2 * MARGIN                                  # 2 cm into the apple
+    below = Neighbours(caps, [middle + deep * down], 0.8)
+    beside = Neighbours(caps, [middle + deep * side], 0.8)
+    press = below.first_fast_touch(t, q)
+    assert press is not None and press.stem and press.speed < 0.8 and press.limit == 0.0
+    assert 'off its stem' in str(press)
+    assert beside.first_fast_touch(t, q) is None
+    assert below.first_fast_touch(t, q, pressing=False) is None          # as slow past it as allowed
+    assert below.first_fast_touch(t, q, spare=[0]) is None               # a move's ends cannot help it
+    assert below.first_fast_touch(t, np.repeat(q[:1], len(t), axis=0)) is None     # at rest
+
+
+def test_the_planner_feels_the_fingers_at_their_opening_as_the_world_does(arm):
+    caps = ArmCapsules.from_arm(arm)
+    q0 = np.array([0.0, 0.2, 1.6, 0.0, 1.3, 0.0])
+    wide, shut = np.append(q0, 0.09)[None], np.append(q0, 0.0)[None]
+    probe = Neighbours(caps, [[0.0, 0.0, 0.0]], 0.8)
+    (finger, radius), (closed, _) = _finger(probe, wide), _finger(probe, shut)
+    out = finger.mean(axis=0) - closed.mean(axis=0)
+    out /= np.linalg.norm(out)                                           # from the grasp point out past the finger
+    apple = finger.mean(axis=0) + (radius + RADIUS + MARGIN / 2) * out
+    outside = Neighbours(caps, [apple], 0.8)
+    assert outside.touching(wide).all() and not outside.touching(shut).any()
+    assert outside.touching(q0[None]).all()                              # no opening given: open
 
 
 def test_a_swaying_apple_is_kept_farther_off_and_passed_slower_by_its_own_sway(arm):
@@ -102,14 +148,8 @@ def test_a_harvest_passes_the_apples_still_on_the_tree_and_forgets_those_in_the_
     fast = []
     for a in plan.apples:
         centres.pop(a.index)                     # picked in this cycle: no longer a neighbour after
-        seg_t = [(s.start, s.start + s.duration) for s in plan.plan.segments
-                 if s.label.startswith(f'apple {a.index}: ') and s.label.split(': ', 1)[1] in DETOURS]
-        t, q = cycle.checker.samples(plan.plan.trajectory)
-        within = np.zeros(len(t), bool)
-        for lo, hi in seg_t:
-            within |= (t >= lo) & (t <= hi)
         later = Neighbours(cycle.checker.capsules, list(centres.values()), PASS)
-        fast.append(later.first_fast_touch(t, q[:, :cycle.arm.dof], within))
+        fast.append(_fast_in_joint_moves(cycle, plan.plan, later, a.index))
     assert len(plan.apples) >= 5
     assert sum(f is not None for f in fast) <= 1, fast
 
@@ -127,16 +167,11 @@ def test_a_harvest_passes_swaying_apples_slower_by_their_sway():
     plan = Harvest(cycle).plan((home, z, z), apples, follows=follows, t0=100.0)
     centres = {i: T[:3, 3] for i, T in enumerate(apples)}
     fast = []
-    t, q = cycle.checker.samples(plan.plan.trajectory)
     for a in plan.apples:
         centres.pop(a.index)
-        within = np.zeros(len(t), bool)
-        for s in plan.plan.segments:
-            if s.label.startswith(f'apple {a.index}: ') and s.label.split(': ', 1)[1] in DETOURS:
-                within |= (t >= s.start) & (t <= s.start + s.duration)
         sway = [follows[i].reach(c, 100.0) for i, c in centres.items()]
         later = Neighbours(cycle.checker.capsules, list(centres.values()), PASS, sway=sway)
-        fast.append(later.first_fast_touch(t, q[:, :cycle.arm.dof], within))
+        fast.append(_fast_in_joint_moves(cycle, plan.plan, later, a.index))
     assert len(plan.apples) >= 10
     assert not any(fast), fast                   # (planned as if they hung still, some pass faster)
 
@@ -159,7 +194,7 @@ def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_th
     neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
     direct = cycle.plan((home, z, z), orchard.apples[target])
     slowed = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
-    assert _fast_in_joint_moves(cycle, slowed, neighbours) is None
+    assert _fast_in_joint_moves(cycle, slowed, neighbours, pressing=False) is None
     assert '%' in slowed.extra['slowed']
     assert slowed.duration > direct.duration
     allowed = Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
@@ -170,7 +205,7 @@ def test_a_slowed_move_that_would_cut_into_a_twig_is_taken_around_it_again(monke
     # (Seed 2's apple 2: its transfer goes around twig 1 through waypoints and passes apple 6 fast; slowed, the
     # timed move between the same waypoints cuts into the twig.)
     cycle, plan, neighbours, allowed = _without_a_way_around(monkeypatch, seed=2, target=2)
-    assert _fast_in_joint_moves(cycle, plan, neighbours) is None
+    assert _fast_in_joint_moves(cycle, plan, neighbours, pressing=False) is None
     assert 'P4 above the box' in plan.extra['slowed'] and 'P4 above the box' in plan.extra['detours']
     assert check(cycle.checker, plan, allowed) is None
 
@@ -196,7 +231,7 @@ def test_a_move_slowed_only_past_the_apples_is_quicker_than_one_slowed_whole(mon
     _, whole, _, _ = _without_a_way_around(monkeypatch, whole=True)
     assert 'past the apples' not in whole.extra['slowed']
     for plan in (past, whole):
-        assert _fast_in_joint_moves(cycle, plan, neighbours) is None
+        assert _fast_in_joint_moves(cycle, plan, neighbours, pressing=False) is None
         assert check(cycle.checker, plan, allowed) is None
     transfer = [next(s for s in plan.segments if s.label == 'P4 above the box').duration for plan in (past, whole)]
     assert transfer[0] < transfer[1]

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from picking_core.fruit import FruitWorld, Wind
+from picking_core.fruit import OPEN, ArmBodies, FruitWorld, Wind
 
 #: m: apples' diameters are drawn in this range (what the gripper's 9 cm opening takes) ...
 DIAMETERS = (0.06, 0.085)
@@ -76,40 +76,23 @@ def fruit_world(centres, scene, seed=0, wind=Wind(), t0=0.0):
                       max(ground) if ground else -np.inf, wind, t0=t0)
 
 
-#: The gripper as the world judges its touches (tool frame, m; the URDF's visual geometry): two fingers 2 cm
-#: thick reaching 6 cm back from the grasp point along z, on either side of it along x at the opening, and the
-#: wrist body behind them, its round front 5 cm behind the grasp point where the URDF's cylinder ends (an apple
-#: held at the grasp point does not touch it). (The URDF's collision capsules bound fingers and apple coarsely,
-#: for planning.)
-FINGER_RADIUS, FINGER_LENGTH = 0.01, 0.06
-WRIST = (np.array([0.0, 0.0, -0.15]), np.array([0.0, 0.0, -0.085]), 0.035)
-
-
 class ArmSamples:
     """What the world judges of the arm (``arm``: an ArmModel; ``capsules``: its ArmCapsules) from joint
     samples ``q`` (N, all joints, named ``names``): tool poses, finger openings (the position of the joint
-    ``gripper``, by default the arm's gripper joint; without one the fingers stay 9 cm apart), and the segments of the links (the gripper's coarse capsules replaced by
-    the wrist body and the two fingers), with their ``radii`` and ``names``."""
+    ``gripper``, by default the arm's gripper joint; without one the fingers stay OPEN apart), and the segments
+    of the bodies that touch apples (:class:`~picking_core.fruit.ArmBodies`), with their ``radii`` and
+    ``names``."""
 
     def __init__(self, arm, capsules, names, gripper=None):
-        self.arm, self.capsules = arm, capsules
+        self.arm, self.bodies = arm, ArmBodies(capsules)
         gripper = gripper or arm.gripper_joint
         self.gripper = names.index(gripper) if gripper in names else None
-        self.keep = np.flatnonzero(capsules.frame != arm.dof)            # the links before the wrist's last joint
-        self.radii = np.concatenate([capsules.radius[self.keep], [WRIST[2], FINGER_RADIUS, FINGER_RADIUS]])
-        self.names = [capsules.links[k] for k in self.keep] + ['the wrist', 'a finger', 'a finger']
+        self.radii, self.names = self.bodies.radii, self.bodies.names
 
     def __call__(self, q):
         q = np.atleast_2d(np.asarray(q, float))
-        tools = self.arm.joint_frames(q[:, :self.arm.dof])[:, -1]
-        openings = q[:, self.gripper] if self.gripper is not None else np.full(len(q), 0.09)
-        x = openings / 2 + FINGER_RADIUS
-        local = np.zeros((len(q), 3, 2, 3))                                # wrist, finger +x, finger -x
-        local[:, 0] = WRIST[:2]
-        local[:, 1, :, 0], local[:, 2, :, 0] = x[:, None], -x[:, None]
-        local[:, 1:, 0, 2] = -FINGER_LENGTH
-        gripper = np.einsum('nij,nkej->nkei', tools[:, :3, :3], local) + tools[:, None, None, :3, 3]
-        links = np.concatenate([self.capsules.segments(q)[:, self.keep], gripper], axis=1)
+        openings = q[:, self.gripper] if self.gripper is not None else np.full(len(q), OPEN)
+        tools, links = self.bodies(q[:, :self.arm.dof], openings)
         return tools, openings, links
 
 
