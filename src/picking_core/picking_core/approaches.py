@@ -256,11 +256,11 @@ class Slowed:
 
 def _past_apples(cycle, make, plan, detours, allowed, neighbours):
     """``(plan, detours)``: each joint move of the clear ``plan`` (made by ``make(detours)``) that passes one of
-    the ``neighbours`` faster than their speed made the quickest of: taken around the apples
-    (:func:`_around_apples`), slowed only over its stretch past them (:func:`_window`) or slowed whole, until it
-    passes none fast (at most to MIN_SLOW of its speed; :func:`_slowed`); one pressing an apple off its stem taken
-    around, else slowed. A move that none of these helps keeps its path (the apple it passes may bruise or come
-    off)."""
+    the ``neighbours`` faster than their speed, or presses one off its stem, made the quickest of: taken around the
+    apples (:func:`_around_apples`), or slowed only over its stretch past them (:func:`_window`) or slowed whole,
+    until it passes none fast (at most to MIN_SLOW of its speed; :func:`_slowed`); a move that presses an apple is
+    slowed on a way around the apples it presses (touching others slowly) where one is found. A move that none of
+    these helps keeps its path (the apple it passes may bruise or come off)."""
     checker = cycle.checker
     tried, slow = set(), {}
     while True:
@@ -272,16 +272,23 @@ def _past_apples(cycle, make, plan, detours, allowed, neighbours):
         tried.add(seg.label)
         around = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours)
         ways = [] if around is None else [(around[0], slow, around[1])]
-        # No speed keeps an apple pressed from above on its stem: a move that cannot go around it is still slowed
-        # past the apples it passes fast.
-        fast = touch if not touch.stem else None if ways else \
-            _fast_touch(checker, plan, neighbours, [seg.label], pressing=False)[0]
-        window = None if fast is None else _window(cycle, plan, seg, neighbours)
-        for within in ([] if fast is None else [None] if window is None else [window, None]):
-            ways.append(_slowed(cycle, make, seg.label, fast, detours, slow, within, allowed, neighbours))
+        base = (plan, detours)
+        # No speed keeps an apple pressed from above on its stem: the slowed ways start from a way around it.
+        if _fast_touch(checker, plan, neighbours, [seg.label], fast=False)[0] is not None:
+            base = _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours, fast=False) or base
+        start, start_detours = base
+        fast = _fast_touch(checker, start, neighbours, [seg.label], pressing=False)[0]
+        if fast is None:
+            ways.append((start, slow, start_detours))
+        else:
+            move = next(x for x in start.segments if x.label == seg.label)
+            window = _window(cycle, start, move, neighbours)
+            for within in ([None] if window is None else [window, None]):
+                ways.append(_slowed(cycle, make, seg.label, fast, start_detours, slow, within, allowed, neighbours))
         ways = [w for w in ways if w is not None]
+        gentle = [w for w in ways if _fast_touch(checker, w[0], neighbours, [seg.label], fast=False)[0] is None]
         if ways:
-            plan, slow, detours = min(ways, key=lambda w: w[0].duration)
+            plan, slow, detours = min(gentle or ways, key=lambda w: w[0].duration)
 
 
 def _slowed(cycle, make, label, touch, detours, slow, window, allowed, neighbours):
@@ -321,11 +328,12 @@ def _window(cycle, plan, seg, neighbours):
     return (None if t_in <= seg.start else ends[0]), (None if t_out >= seg.start + seg.duration else ends[1])
 
 
-def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
+def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours, fast=True):
     """``(plan, detours)`` with the joint move ``seg`` of ``plan`` taken around the ``neighbours``: through the
-    waypoints of a joint path clear of them and of the obstacles (the apples its own ends touch, slowly there,
-    are passed as they are), twice as many of them while the timed move still cuts past an apple fast, up to
-    REFINE times; None when no such path is found, or the plan made that way is not clear."""
+    waypoints of a joint path clear of them (``fast`` False: pressing none off its stem, touching them allowed) and
+    of the obstacles (the apples its own ends touch, slowly there, are passed as they are), twice as many of them
+    while the timed move still cuts past an apple fast (or presses one), up to REFINE times; None when no such path
+    is found, or the plan made that way is not clear."""
     checker, arm = cycle.checker, cycle.arm
     ends = np.asarray(plan.trajectory.sample([seg.start, seg.start + seg.duration])[0])[:, :arm.dof + 1]
     # The fingers as wide as at either end of the move, all along the search (the arm's own joints come first).
@@ -336,7 +344,8 @@ def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
     def in_the_way(x):
         x = np.atleast_2d(x)
         held = np.column_stack([x, np.tile(fingers, (len(x), 1))])
-        return checker.colliding(x, allowed) | neighbours.touching(held, ignore)
+        return checker.colliding(x, allowed) | (neighbours.touching(held, ignore) if fast else
+                                                 neighbours.pressing(held, ignore))
     try:
         path = rrt_connect(in_the_way, ends[0], ends[1], arm.lower, arm.upper, iterations=PAST_APPLES_TRIES)
     except NoPath:
@@ -353,17 +362,17 @@ def _around_apples(cycle, make, plan, seg, detours, slow, allowed, neighbours):
             return None
         if check(checker, again, allowed) is not None:
             return None
-        if _fast_touch(checker, again, neighbours, [seg.label])[0] is None:
+        if _fast_touch(checker, again, neighbours, [seg.label], fast=fast)[0] is None:
             return again, around
         path = doubled(path)
     return None
 
 
-def _fast_touch(checker, plan, neighbours, labels, pressing=True):
+def _fast_touch(checker, plan, neighbours, labels, pressing=True, fast=True):
     """``(touch, segment)``: the first :class:`~picking_core.collision.fruit.FastTouch` of ``plan`` (at the checker's
-    samples) within its segments labelled one of ``labels`` (with ``pressing``, an apple pressed off its stem
-    too, but for those a move's own ends touch: it cannot help them), and that segment; ``(None, None)`` without
-    one."""
+    samples) within its segments labelled one of ``labels`` (``fast``: an apple passed too fast; ``pressing``: one
+    pressed off its stem, but for those a move's own ends touch: it cannot help them), and that segment;
+    ``(None, None)`` without one."""
     segments = sorted((s for s in plan.segments if s.label in labels), key=lambda s: s.start)
     if not segments:
         return None, None
@@ -374,7 +383,7 @@ def _fast_touch(checker, plan, neighbours, labels, pressing=True):
         if inside.sum() < 2:
             continue
         spare = neighbours.touched_at(q[inside][[0, -1]]) if pressing else ()
-        touch = neighbours.first_fast_touch(t[inside], q[inside], pressing=pressing, spare=spare)
+        touch = neighbours.first_fast_touch(t[inside], q[inside], pressing=pressing, spare=spare, fast=fast)
         if touch is not None:
             return touch, s
     return None, None

@@ -24,12 +24,12 @@ def _cycle(seed=1, apple_pass_speed=PASS):
     return PickCycle(shipped.cycle.planner, shipped.cycle.s, checker), orchard
 
 
-def _fast_in_joint_moves(cycle, plan, neighbours, apple=None, pressing=True):
-    """The first fast touch (``pressing``: or press off a stem, which no slowing helps) in the joint moves of
-    ``plan`` (those of ``apple``'s cycle)."""
+def _fast_in_joint_moves(cycle, plan, neighbours, apple=None, pressing=True, fast=True):
+    """The first fast touch (``fast``) or press off a stem (``pressing``, which no slowing helps) in the joint moves
+    of ``plan`` (those of ``apple``'s cycle)."""
     prefix = '' if apple is None else f'apple {apple}: '
     labels = [f'{prefix}{label}' for label in DETOURS]
-    return approaches._fast_touch(cycle.checker, plan, neighbours, labels, pressing)[0]
+    return approaches._fast_touch(cycle.checker, plan, neighbours, labels, pressing, fast)[0]
 
 
 def test_a_link_touching_an_apple_counts_only_when_it_moves_faster_than_the_bruising_margin(arm):
@@ -187,7 +187,7 @@ def test_with_the_pass_speed_off_a_harvest_plans_each_cycle_as_alone():
 
 def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_them_slowly(monkeypatch):
     cycle, orchard = _cycle()
-    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
+    monkeypatch.setattr(approaches, '_around_apples', lambda *args, **kwargs: None)
     centres = np.array([T[:3, 3] for T in orchard.apples])
     home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
     target = 7
@@ -199,6 +199,26 @@ def test_a_joint_move_with_no_way_around_the_apples_is_slowed_until_it_passes_th
     assert slowed.duration > direct.duration
     allowed = Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)
     assert check(cycle.checker, slowed, allowed) is None
+
+
+def test_a_move_pressing_an_apple_with_no_way_clear_of_all_is_slowed_around_the_apple_it_presses(monkeypatch):
+    """Seed 3's apple 5: its transfer presses apple 6 off its stem with a finger. With no way clear of every apple,
+    the move goes around the apples it would press (touching others) and is slowed past those it passes fast."""
+    cycle, orchard = _cycle(3)
+    real = approaches._around_apples
+    monkeypatch.setattr(approaches, '_around_apples',
+                        lambda *args, **kwargs: real(*args, **kwargs) if kwargs.get('fast') is False else None)
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 5
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    direct = cycle.plan((home, z, z), orchard.apples[target])
+    press = _fast_in_joint_moves(cycle, direct, neighbours, fast=False)
+    assert press is not None and press.stem and press.speed < 1.0
+    plan = cycle.plan((home, z, z), orchard.apples[target], neighbours=neighbours)
+    assert _fast_in_joint_moves(cycle, plan, neighbours) is None
+    assert 'P4 above the box through' in plan.extra['detours'] and 'P4 above the box to' in plan.extra['slowed']
+    assert check(cycle.checker, plan, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
 
 
 def test_a_slowed_move_that_would_cut_into_a_twig_is_taken_around_it_again(monkeypatch):
@@ -214,7 +234,7 @@ def _without_a_way_around(monkeypatch, seed=1, target=0, whole=False):
     """The cycle of apple ``target`` of tree ``seed`` with no way around the apples: its moves that pass them fast
     slowed past them (or, ``whole``, all of each); ``(cycle, plan, neighbours, allowed)``."""
     cycle, orchard = _cycle(seed)
-    monkeypatch.setattr(approaches, '_around_apples', lambda *args: None)
+    monkeypatch.setattr(approaches, '_around_apples', lambda *args, **kwargs: None)
     if whole:
         monkeypatch.setattr(approaches, '_window', lambda *args: None)
     centres = np.array([T[:3, 3] for T in orchard.apples])

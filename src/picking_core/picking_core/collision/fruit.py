@@ -101,11 +101,11 @@ class Neighbours:
         into = self.radii[None, None] + self.depth[None, :, None] - dist
         return (into * above[..., 2] / dist > PULL) & self.true[None, None]
 
-    def first_fast_touch(self, t, q, within=None, pressing=True, spare=()):
+    def first_fast_touch(self, t, q, within=None, pressing=True, spare=(), fast=True):
         """The first :class:`FastTouch` along the samples ``t`` (N,), ``q`` (N, dof or dof + 1: see
-        :meth:`touching`) of a motion (only at the
-        samples where ``within`` (N,) is True, if given; with ``pressing``, a link pressing an apple off its stem
-        too, but for the apples ``spare``, indices), or None."""
+        :meth:`touching`) of a motion (only at the samples where ``within`` (N,) is True, if given): with ``fast``,
+        a link passing an apple faster than allowed; with ``pressing``, a link pressing an apple off its stem, but
+        for the apples ``spare`` (indices); or None."""
         if not len(self.centres) or len(t) < 2:
             return None
         seg = self._segments(q)                                           # (N, K, 2, 3)
@@ -117,12 +117,12 @@ class Neighbours:
         pressing = touching & self._pressing(seg) if pressing else np.zeros_like(touching)
         pressing[:, np.asarray(spare, int)] = False
         speed = np.linalg.norm(np.gradient(seg, np.asarray(t, float), axis=0), axis=-1).max(axis=-1)   # (N, K)
-        fast = (touching & (speed[:, None, :] > self.limits[None, :, None])) | \
-            (pressing & (speed[:, None, :] > AT_REST))
-        if not fast.any():
+        passing = touching & (speed[:, None, :] > self.limits[None, :, None]) if fast else np.zeros_like(touching)
+        found = passing | (pressing & (speed[:, None, :] > AT_REST))
+        if not found.any():
             return None
-        i, a, k = (int(x[0]) for x in np.nonzero(fast))
-        if pressing[i, a, k] and speed[i, k] <= self.limits[a]:
+        i, a, k = (int(x[0]) for x in np.nonzero(found))
+        if not passing[i, a, k]:
             return FastTouch(float(t[i]), a, self.names[k], float(speed[i, k]), 0.0, stem=True)
         return FastTouch(float(t[i]), a, self.names[k], float(speed[i, k]), float(self.limits[a]))
 
@@ -132,6 +132,14 @@ class Neighbours:
         keep = np.ones(len(self.centres), bool)
         keep[np.asarray(ignore, int)] = False
         return self._touching(self._segments(q))[:, keep].any(axis=(1, 2))
+
+    def pressing(self, q, ignore=()):
+        """(N,) True where the arm at ``q`` (as for :meth:`touching`) presses an apple other than those of
+        ``ignore`` off its stem."""
+        keep = np.ones(len(self.centres), bool)
+        keep[np.asarray(ignore, int)] = False
+        seg = self._segments(q)
+        return (self._touching(seg) & self._pressing(seg))[:, keep].any(axis=(1, 2))
 
     def touched_at(self, q):
         """Indices of the apples the arm touches at ``q`` (as for :meth:`touching`) anywhere."""
