@@ -581,9 +581,10 @@ def world_section(rec, claimed, n):
     first = fates.get(n, [])
     lines += ['', f"Scenario 1's apple (apple {n} of the simulator's tree): {', '.join(first) or 'nothing happened to it'}."]
     if worst['bruised'] or worst['knocked']:
-        lines += ['', f"The planner avoids the scene; it passes the apples it is not picking at full speed unless the "
-                  f"pick cycle's `apple_pass_speed` is set (off as shipped): the arm knocked {len(worst['knocked'])} "
-                  f"of them on the way, {len(worst['bruised'])} faster than the bruising speed."]
+        lines += ['', "The planner avoids the scene; its joint moves pass the apples it is not picking no faster than "
+                  "the pick cycle's `apple_pass_speed` (0.9 m/s as shipped; 0: full speed) and press none off its "
+                  "stem, its straight lines near an apple as they are: the arm knocked "
+                  f"{len(worst['knocked'])} of them on the way, {len(worst['bruised'])} faster than the bruising speed."]
     checks = {"every apple the planner calls picked is in the box by the simulator's count": not wrong and bool(in_box),
               "scenario 1's apple is in the box (simulator)": 'in the box' in first}
     return lines, checks

@@ -128,8 +128,9 @@ class PickSettings:
         Radius around the apple's centre where touching is allowed (the apple and its stem), m.
     apple_pass_speed : float
         In a harvest (with a collision checker), the fastest a link may pass an apple still on the
-        tree, m/s: a joint move passing one faster goes around those apples where a way is found
-        (:mod:`picking_core.collision.fruit`); 0: the other apples are not looked at.
+        tree, m/s: a joint move passing one faster, or pressing one off its stem, goes around those
+        apples where a way is found, else is slowed past them (:mod:`picking_core.collision.fruit`);
+        0: the other apples are not looked at.
     hold_time : float
         A pick of a moving apple whose closing is not sure waits at the stand-off (P1) for a
         calmer moment at most this long from its first hold, s; then it backs off home and
@@ -161,7 +162,7 @@ class PickSettings:
     box_blend_radius: float = 0.0
     approach_cone: float = float(np.radians(45.0))
     apple_region: float = 0.06
-    apple_pass_speed: float = 0.0
+    apple_pass_speed: float = 0.9
     hold_time: float = 3.0
     release_lead: float = 0.0
 

@@ -54,8 +54,8 @@ def test_the_fingers_stand_at_the_opening_either_side_of_the_grasp_point(arm):
     assert 'wrist_3_link' not in samples.names and len(samples.radii) == links.shape[1]
     # The planner keeps the apples on the tree from the same bodies (picking_core.collision.fruit.Neighbours).
     planner = Neighbours(ArmCapsules.from_arm(arm), [[0.0, 0.0, 0.0]], 0.9)
-    assert np.allclose(planner._segments(np.array([[*HOME_POSITIONS, 0.07]]))[:, planner.true], links)
-    assert planner.bodies.names == samples.names and np.allclose(planner.radii[planner.true], samples.radii)
+    assert np.allclose(planner._segments(np.array([[*HOME_POSITIONS, 0.07]]))[:, planner.fine], links)
+    assert planner.bodies.names == samples.names and np.allclose(planner.radii[planner.fine], samples.radii)
 
 
 def test_a_harvest_passing_apples_slowly_presses_none_off_its_stem():

@@ -53,8 +53,8 @@ class Neighbours:
     (an :class:`~picking_core.kinematics.capsules.ArmCapsules`, whose coarse capsules bound the gripper and the
     apple it holds; and the bodies the simulator's world judges touches by, the gripper's wrist and fingers among
     them: :class:`~picking_core.fruit.ArmBodies`, the only ones that tell which way they press an apple), passed
-    no faster than ``speed`` m/s (the
-    pick cycle's ``apple_pass_speed``: below the 1 m/s an apple bruises at, with a margin for the servo's lag).
+    no faster than ``speed`` m/s (the pick cycle's ``apple_pass_speed``: below the 1 m/s an apple bruises at, with
+    a margin for the servo's lag).
     ``sway`` (n, 2), for apples that sway: how far each strays from its centre (m) and its fastest (m/s), from
     :meth:`~picking_core.moving_pick.Follow.reach`: the arm keeps that much farther off to count as passing it,
     and passes it slower by its own speed (they meet at the sum of the two). Each apple hangs straight down (-z of
@@ -62,10 +62,10 @@ class Neighbours:
 
     def __init__(self, capsules, centres, speed, radius=RADIUS, margin=MARGIN, sway=None):
         self.capsules, self.bodies = capsules, ArmBodies(capsules)
-        # Every body, the coarse capsules first: their radii and names, and which of them press true.
+        # Every body, the coarse capsules first: their radii and names, and which are the world's own (``fine``).
         self.radii = np.concatenate([capsules.radius, self.bodies.radii])
         self.names = [*capsules.links, *self.bodies.names]
-        self.true = np.arange(len(self.radii)) >= len(capsules.radius)
+        self.fine = np.arange(len(self.radii)) >= len(capsules.radius)
         self.centres = np.asarray(centres, float).reshape(-1, 3)
         self.radius, self.speed, self.margin = float(radius), float(speed), float(margin)
         sway = np.zeros((len(self.centres), 2)) if sway is None else np.asarray(sway, float).reshape(-1, 2)
@@ -99,7 +99,7 @@ class Neighbours:
         above = a + s[..., None] * ab - self.centres[None, :, None]      # from the centre to the link's axis
         dist = np.maximum(np.linalg.norm(above, axis=-1), 1e-9)
         into = self.radii[None, None] + self.depth[None, :, None] - dist
-        return (into * above[..., 2] / dist > PULL) & self.true[None, None]
+        return (into * above[..., 2] / dist > PULL) & self.fine[None, None]
 
     def first_fast_touch(self, t, q, within=None, pressing=True, spare=(), fast=True):
         """The first :class:`FastTouch` along the samples ``t`` (N,), ``q`` (N, dof or dof + 1: see
