@@ -80,6 +80,8 @@ def run_ros_part(args, config, out, demo, stack_initial):
         spin_until(lambda: rec.count('joint_states') > 10 and pick.server_is_ready(), 30.0, 'the nodes to come up')
         spin_until(lambda: rec.count('joint_commands') > 10, 30.0, 'the controller to hold the arm')
         log('nodes up: joint_states flowing, controller holding, planner listening')
+        seen = look_at_the_tree(node, spin_until)
+        log(f"the planner's fruit map sees {seen} apples of the tree: a pick passes them slowly")
         run_pick_scenario(node, pick, rec, demo, spin_until, events)
         time.sleep(0.5)                          # a last half second of joint_states
         if not args.quick:
@@ -110,6 +112,34 @@ def write_tree(path, demo):
         [float(v) for v in demo['apple_position']]]
     path.write_text(yaml.safe_dump({'apples': apples}, default_flow_style=None))
     return path
+
+
+#: s the camera watches the tree from home once the planner's fruit map confirmed an apple, before the first goal.
+LOOK = 1.0
+
+
+def look_at_the_tree(node, spin_until):
+    """How many apples the planner's fruit map has confirmed (its line on /diagnostics) after a look at the tree
+    from home: as a user would, the demo lets the camera see the tree before it sends a goal among its apples."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from picking_common.status import DIAGNOSTICS, status_values
+    confirmed = []
+
+    def on_diagnostics(msg):
+        for s in msg.status:
+            if s.name.endswith('picking_planner: fruit map'):
+                confirmed.append(int(status_values(s).get('confirmed', 0)))
+    # (Kept to the end: destroyed while the demo's spinner waits on it, rclpy's wait set would throw.)
+    node.create_subscription(DiagnosticArray, DIAGNOSTICS, on_diagnostics, 10)
+    try:
+        spin_until(lambda: confirmed and confirmed[-1] > 0, 15.0, "the planner's fruit map to see the tree")
+    except RuntimeError:
+        return 0                                 # (a tree out of the camera's view: the goals go on without)
+    time.sleep(LOOK)
+    n = len(confirmed)
+    spin_until(lambda: len(confirmed) > n, 5.0, "the planner's fruit map after the look")
+    return confirmed[-1]
 
 
 def run_pick_scenario(node, pick, rec, demo, spin_until, events):

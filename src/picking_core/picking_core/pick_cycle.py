@@ -127,10 +127,11 @@ class PickSettings:
     apple_region : float
         Radius around the apple's centre where touching is allowed (the apple and its stem), m.
     apple_pass_speed : float
-        In a harvest (with a collision checker), the fastest a link may pass an apple still on the
-        tree, m/s: a joint move passing one faster, or pressing one off its stem, goes around those
-        apples where a way is found, else is slowed past them (:mod:`picking_core.collision.fruit`);
-        0: the other apples are not looked at.
+        In a harvest or a pick (with a collision checker), the fastest a link may pass an apple still
+        on the tree (a harvest's others, the apples the planner's world knows), m/s: a joint move
+        passing one faster, or pressing one off its stem, goes around those apples where a way is
+        found, else is slowed past them (:mod:`picking_core.collision.fruit`); 0: the other apples
+        are not looked at.
     hold_time : float
         A pick of a moving apple whose closing is not sure waits at the stand-off (P1) for a
         calmer moment at most this long from its first hold, s; then it backs off home and

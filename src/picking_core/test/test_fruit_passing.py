@@ -6,8 +6,11 @@ from conftest import shipped_harvest, shipped_orchard
 
 from picking_core import approaches
 from picking_core.approaches import DETOURS, check
-from picking_core.collision import Allowed, CollisionChecker
+from picking_core.collision import Allowed, CollisionChecker, World
 from picking_core.collision.fruit import MARGIN, RADIUS, Neighbours
+from picking_core.goals.planning import GoalPlanner
+from picking_core.goals.requests import Kind, Target
+from picking_core.goals.start import Start
 from picking_core.harvest import Harvest
 from picking_core.moving_pick import Follow
 from picking_core.kinematics.capsules import ArmCapsules
@@ -136,6 +139,26 @@ def test_a_joint_move_that_would_pass_a_neighbouring_apple_fast_goes_around_the_
     assert 'waypoint' in around.extra['detours']
     assert check(cycle.checker, around, Allowed(orchard.apples[target][:3, 3], cycle.s.apple_region)) is None
     assert np.allclose(around.trajectory.end_state()[0], direct.trajectory.end_state()[0], atol=1e-9)
+
+
+def test_a_pick_passes_the_apples_the_world_knows_slowly_but_its_own():
+    """A pick goal among the apples the camera sees (the world's ``apples``) plans as a harvest's cycle does; its own
+    apple, seen a few millimetres off, is no neighbour."""
+    cycle, orchard = _cycle()
+    centres = np.array([T[:3, 3] for T in orchard.apples])
+    home, z = np.asarray(cycle.s.home_positions, float), np.zeros(cycle.arm.dof)
+    target = 7                                   # its transfer passes apple 5 at full speed
+    world = World(cycle.arm, orchard.scene)
+    goals = GoalPlanner(cycle.planner, cycle.s, world)
+    start = Start((home, z, z), None, 0.0, 'measured')
+    pick = Target(Kind.PICK, (orchard.apples[target],))
+    alone = goals.plan(pick, start).plan
+    world.replace(apples=centres + [0.003, 0.0, -0.002])
+    among = goals.plan(pick, start).plan
+    neighbours = Neighbours(cycle.checker.capsules, np.delete(centres, target, axis=0), PASS)
+    assert _fast_in_joint_moves(cycle, alone, neighbours) is not None
+    assert _fast_in_joint_moves(cycle, among, neighbours) is None
+    assert among.duration > alone.duration
 
 
 def test_a_harvest_passes_the_apples_still_on_the_tree_and_forgets_those_in_the_box():

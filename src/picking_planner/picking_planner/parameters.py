@@ -86,9 +86,10 @@ _TEXT = {
     'approach_cone': ('when the requested approach to an apple is blocked or out of reach, other grasp axes are tried '
                       'this far from it (0: none)', 'rad', (0.0, 1.5708)),
     'apple_region': ('radius around an apple where touching is allowed (the apple and its stem)', 'm', (0.0, 0.5)),
-    'apple_pass_speed': ('in a harvest, the fastest a link may pass an apple still on the tree: a joint move passing '
-                         'one faster, or pressing one off its stem, goes around those apples where a way is found, '
-                         'else is slowed past them (0: not looked at)', 'm/s',
+    'apple_pass_speed': ('in a harvest or a pick, the fastest a link may pass an apple still on the tree (the '
+                         "harvest's others, the apples the camera sees): a joint move passing one faster, or pressing "
+                         'one off its stem, goes around those apples where a way is found, else is slowed past them '
+                         '(0: not looked at)', 'm/s',
                          (0.0, 10.0)),
     'hold_time': ('a pick of a moving apple whose closing is not sure waits at the stand-off at most this long from '
                   'its first hold, then backs off home without closing', 's', (0.1, 60.0)),

@@ -56,6 +56,8 @@ class SeenApples:
         stamp = msg.header.stamp
         self.map.update(self.runner.port.seconds(stamp.sec * 1_000_000_000 + stamp.nanosec), placed, covariances,
                         diameters, scores)
+        # The apples a pick passes slowly: those the map confirmed.
+        self.node.world.replace(apples=[T[:3, 3] for T in self.map.grasp_poses()])
         self.runner.seen(placed, diameters, stamp_key(msg.header.stamp))
         self.runner.seen_more(self.map.grasp_poses(settled=SETTLED))
         self.runner.reaim(self.map.follow)

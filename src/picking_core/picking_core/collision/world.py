@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
+
 from ..kinematics.capsules import ArmCapsules
 from .checker import CLEARANCE, CollisionChecker
 from .scene import Canopy, Scene
@@ -13,12 +15,15 @@ from .scene import Canopy, Scene
 class World:
     """The arm's capsules with a :class:`Scene` and a :class:`Canopy` (either replaced whole at
     any time, from any thread), checked with ``clearance`` m; ``enabled`` False checks nothing (a
-    baseline that plans as if the world were empty)."""
+    baseline that plans as if the world were empty). ``apples``: the centres (n, 3, m in the arm's
+    base) of the apples the arm knows hang on the tree (the camera's): not obstacles, passed slowly
+    (:class:`~picking_core.collision.fruit.Neighbours`)."""
 
     def __init__(self, arm, scene=None, clearance=CLEARANCE, enabled=True):
         self._lock = threading.Lock()
         base = CollisionChecker(ArmCapsules.from_arm(arm), scene or Scene(), None, clearance)
         self._checker, self.enabled = base, bool(enabled)
+        self.apples = np.zeros((0, 3))
 
     @property
     def checker(self):
@@ -35,9 +40,9 @@ class World:
     def canopy(self):
         return self._checker.canopy
 
-    def replace(self, scene=None, canopy=None, clearance=None, enabled=None):
-        """A new scene, canopy (a :class:`Canopy`, or points to build one from), clearance or
-        switch; what is not given stays. A canopy is built before the lock is taken: planning
+    def replace(self, scene=None, canopy=None, clearance=None, enabled=None, apples=None):
+        """A new scene, canopy (a :class:`Canopy`, or points to build one from), clearance, switch or
+        apples (centres, (n, 3)); what is not given stays. A canopy is built before the lock is taken: planning
         goes on with the old one meanwhile."""
         if canopy is not None and not isinstance(canopy, Canopy):
             canopy = Canopy(canopy)
@@ -48,6 +53,8 @@ class World:
                 self._checker = self._checker.replaced(**changes)
             if enabled is not None:
                 self.enabled = bool(enabled)
+            if apples is not None:
+                self.apples = np.asarray(apples, float).reshape(-1, 3)
 
     def clear_canopy(self):
         """No canopy cloud (an empty cloud came): the scene and the arm only."""

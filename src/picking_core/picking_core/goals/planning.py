@@ -10,6 +10,7 @@ from .. import around
 from ..approaches import Blocked
 from ..collision import STEP as COLLISION_STEP
 from ..collision import Allowed
+from ..collision.fruit import RADIUS, Neighbours
 from ..harvest import Harvest, HarvestPlan
 from ..moving_pick import AimHolds, closing_margin, decide
 from ..pick_cycle import PickCycle
@@ -54,7 +55,8 @@ class GoalPlanner:
         elif target.kind == Kind.PICK and target.follow is not None:
             planned = Planned(self._aimed(self._cycle(checker), target, start, at))
         elif target.kind == Kind.PICK:
-            planned = Planned(self._cycle(checker).plan(start.state, target.pose, gripper_start=start.gripper))
+            planned = Planned(self._cycle(checker).plan(start.state, target.pose, gripper_start=start.gripper,
+                                                        neighbours=self._neighbours(checker, target.pose)))
         else:
             harvest = Harvest(self._cycle(checker)).plan(start.state, list(target.poses), gripper_start=start.gripper,
                                                           indices=list(target.indices), follows=target.follows, t0=at)
@@ -95,6 +97,15 @@ class GoalPlanner:
 
     def _cycle(self, checker):
         return PickCycle(self.planner, self.pick, checker)
+
+    def _neighbours(self, checker, T):
+        """The apples the world knows on the tree but the one at ``T`` (within RADIUS of its centre), passed no
+        faster than the pick settings' ``apple_pass_speed``; None without a checker, a pass speed or any."""
+        centres = self.world.apples
+        others = centres[np.linalg.norm(centres - np.asarray(T, float)[:3, 3], axis=1) > RADIUS]
+        if checker is None or self.pick.apple_pass_speed <= 0.0 or not len(others):
+            return None
+        return Neighbours(checker.capsules, others, self.pick.apple_pass_speed)
 
     def _planner_for(self, target):
         """The planner for a goal that names its own method (empty: the planner's settings). A method that steps
