@@ -475,7 +475,10 @@ class HarvestRun:
 
     def watch(self, t, opening):
         """The fingers measured at ``opening`` (m) at ``t`` (the controller's clock): the newest opening of the
-        apple they carry then (see :func:`carried`)."""
+        apple they carry then (see :func:`carried`), this run's or, until this one takes over, the run's before
+        it (the apple in hand when the rest was planned)."""
+        if self.before is not None and t < self.before.until:
+            self.before.watch(t, opening)
         if self.plan.empty_below <= 0.0 or t >= self.until:
             return
         for a in self.plan.apples:

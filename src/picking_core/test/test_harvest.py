@@ -204,6 +204,27 @@ def test_the_rest_of_a_harvest_planned_again_keeps_each_apples_index_in_the_goal
     assert len(carried.newly_picked(1e9)) == 3
 
 
+def test_the_apple_in_hand_when_a_rest_is_planned_is_still_watched_in_the_fingers(harvest, five):
+    """The run that takes over is the one the planner watches from then on; the apple the run before it still
+    carries until then is measured all the same: held or missed by the fingers, never claimed by the plan."""
+    from picking_core.harvest import GRIP_SETTLE, HarvestGoal, HarvestRun
+    apples, hp = five
+    second = hp.apples[1]
+    splice = 100.0 + second.end
+    rest = HarvestGoal(harvest, apples).rest(harvest, [a.index for a in hp.apples[2:]], 'a new apple', splice)
+    q, qd, qdd = hp.plan.trajectory.state_at(second.end)
+    rest((q[:6], qd[:6], qdd[:6]), q[6])
+    run = HarvestRun(hp, 100.0)
+    run.until = splice
+    carried = HarvestRun(rest.last, splice, before=run)
+    during = 100.0 + 0.5 * (second.held[0] + GRIP_SETTLE + second.held[1])
+    carried.watch(during, 0.0)                            # closed on nothing while the run before carried it
+    assert carried.holding(second) is False
+    carried.watch(splice + 0.01, 0.0)                     # (past the splice: the run before carries nothing)
+    first_of_rest = rest.last.apples[0]
+    assert carried.holding(first_of_rest) is None
+
+
 def test_new_apples_are_those_no_harvest_knows_away_from_the_box():
     from picking_core.harvest import BOX_CLEAR, KNOWN_APPLE, new_apples
 
