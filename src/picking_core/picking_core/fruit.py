@@ -63,22 +63,29 @@ class ArmBodies:
     def __init__(self, capsules):
         self.capsules, self.arm = capsules, capsules.arm
         self.keep = np.flatnonzero(capsules.frame != self.arm.dof)      # the links before the wrist's last joint
-        self.radii = np.concatenate([capsules.radius[self.keep], [WRIST[2], FINGER_RADIUS, FINGER_RADIUS]])
-        self.names = [capsules.links[k] for k in self.keep] + ['the wrist', 'a finger', 'a finger']
+        self.gripper_radii = np.array([WRIST[2], FINGER_RADIUS, FINGER_RADIUS])
+        self.gripper_names = ['the wrist', 'a finger', 'a finger']
+        self.radii = np.concatenate([capsules.radius[self.keep], self.gripper_radii])
+        self.names = [capsules.links[k] for k in self.keep] + self.gripper_names
 
     def __call__(self, q, openings=None):
         """``(tools (N, 4, 4), links (N, K, 2, 3))``: the tool's poses and the bodies' segments at arm joint
         positions ``q`` (N, dof), the fingers ``openings`` (N,) apart (None: OPEN)."""
         q = np.atleast_2d(np.asarray(q, float))
         tools = self.arm.joint_frames(q)[:, -1]
-        openings = np.full(len(q), OPEN) if openings is None else np.asarray(openings, float)
+        return tools, np.concatenate([self.capsules.segments(q)[:, self.keep], self.gripper(tools, openings)], axis=1)
+
+    @staticmethod
+    def gripper(tools, openings=None):
+        """(N, 3, 2, 3): the wrist body's and the two fingers' segments with the tool at ``tools`` (N, 4, 4), the
+        fingers ``openings`` (N,) apart (None: OPEN)."""
+        openings = np.full(len(tools), OPEN) if openings is None else np.asarray(openings, float)
         x = openings / 2 + FINGER_RADIUS
-        local = np.zeros((len(q), 3, 2, 3))                                # wrist, finger +x, finger -x
+        local = np.zeros((len(tools), 3, 2, 3))                            # wrist, finger +x, finger -x
         local[:, 0] = WRIST[:2]
         local[:, 1, :, 0], local[:, 2, :, 0] = x[:, None], -x[:, None]
         local[:, 1:, 0, 2] = -FINGER_LENGTH
-        gripper = np.einsum('nij,nkej->nkei', tools[:, :3, :3], local) + tools[:, None, None, :3, 3]
-        return tools, np.concatenate([self.capsules.segments(q)[:, self.keep], gripper], axis=1)
+        return np.einsum('nij,nkej->nkei', tools[:, :3, :3], local) + tools[:, None, None, :3, 3]
 
 
 class Fate(enum.IntEnum):

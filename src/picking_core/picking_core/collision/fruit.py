@@ -62,10 +62,12 @@ class Neighbours:
 
     def __init__(self, capsules, centres, speed, radius=RADIUS, margin=MARGIN, sway=None):
         self.capsules, self.bodies = capsules, ArmBodies(capsules)
-        # Every body, the coarse capsules first: their radii and names, and which are the world's own (``fine``).
-        self.radii = np.concatenate([capsules.radius, self.bodies.radii])
-        self.names = [*capsules.links, *self.bodies.names]
-        self.fine = np.arange(len(self.radii)) >= len(capsules.radius)
+        # Every body, the coarse capsules then the gripper's own: their radii and names, and which of them are the
+        # world's (``fine``: the links before the wrist's last joint and the gripper's; ArmBodies' order).
+        self.radii = np.concatenate([capsules.radius, self.bodies.gripper_radii])
+        self.names = [*capsules.links, *self.bodies.gripper_names]
+        gripper = np.ones(len(self.bodies.gripper_radii), bool)
+        self.fine = np.concatenate([capsules.frame != capsules.arm.dof, gripper])
         self.centres = np.asarray(centres, float).reshape(-1, 3)
         self.radius, self.speed, self.margin = float(radius), float(speed), float(margin)
         sway = np.zeros((len(self.centres), 2)) if sway is None else np.asarray(sway, float).reshape(-1, 2)
@@ -82,8 +84,9 @@ class Neighbours:
         last."""
         q = np.atleast_2d(np.asarray(q, float))
         dof = self.bodies.arm.dof
-        fine = self.bodies(q[:, :dof], q[:, dof] if q.shape[1] > dof else None)[1]
-        return np.concatenate([self.capsules.segments(q[:, :dof]), fine], axis=1)
+        tools = self.bodies.arm.joint_frames(q[:, :dof])[:, -1]
+        gripper = self.bodies.gripper(tools, q[:, dof] if q.shape[1] > dof else None)
+        return np.concatenate([self.capsules.segments(q[:, :dof]), gripper], axis=1)
 
     def _touching(self, seg):
         """(N, n, K) True where body k at sample i is within the margin of apple a."""
